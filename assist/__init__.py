@@ -1,0 +1,1 @@
+"""assist: rider-assistance algorithms (observers, controllers, risk warning, diagnosis) for ptw_env vehicles."""

@@ -1,0 +1,122 @@
+"""Compiled kernels: the one implementation of the right-hand side and of RK4.
+
+Everything that evaluates the nonlinear model (the environment, the batched
+simulator, :meth:`ptw_env.dynamics.Plant.rhs`, hence linearisation and the
+scipy reference integration in the tests) goes through :func:`rhs_into`. The
+matrices it reads are built by :func:`ptw_env.dynamics.compile_plant` from
+the one vehicle definition; see there for the equations.
+
+Layout of a compiled plant row ``W[i]`` (i = 0..5: ``x'_i``; i = 6, 7:
+``F_lin`` front/rear): ``W[i] . [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, 0]``.
+
+Over one control period ``vx`` and ``tau`` are held (zero-order hold, as in
+the reference ride logs), so each period first folds them into an 8 x 8
+matrix ``M`` and a vector ``c`` (:func:`_fold`) and the substeps only pay for
+``M x``, two sines and the tire saturation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, inline="always")
+def _fold(W, vx, tau, M, c, g):
+    for i in range(8):
+        for j in range(8):
+            M[i, j] = W[i, j] + vx * W[i, 8 + j] + W[i, 16 + j] / vx
+        g[i, 0] = W[i, 24]
+        g[i, 1] = W[i, 25]
+        c[i] = W[i, 26] * tau + W[i, 27]
+
+
+@njit(cache=True, inline="always")
+def _deriv(x, M, c, g, vx, inv_sigma, fmax, bank, out):
+    s1 = np.sin(x[0] - bank)
+    s2 = np.sin(x[1])
+    for i in range(8):
+        acc = c[i] + g[i, 0] * s1 + g[i, 1] * s2
+        for j in range(8):
+            acc += M[i, j] * x[j]
+        out[i] = acc
+    for k in range(2):
+        flin = out[6 + k]
+        fm = fmax[k]
+        if np.isfinite(fm):
+            fss = fm * np.tanh(flin / fm)
+        else:
+            fss = flin
+        out[6 + k] = vx * inv_sigma[k] * (fss - x[6 + k])
+
+
+@njit(cache=True)
+def rhs_into(x, tau, vx, W, inv_sigma, fmax, bank, out):
+    """``out[n] = f(x[n], tau[n], vx[n])`` for a batch; ``W`` etc. have a leading
+    axis of length 1 (shared) or N (one plant per vehicle)."""
+    M = np.empty((8, 8))
+    c = np.empty(8)
+    g = np.empty((8, 2))
+    K = W.shape[0]
+    for n in range(x.shape[0]):
+        k = n if K > 1 else n - n
+        _fold(W[k], vx[n], tau[n], M, c, g)
+        _deriv(x[n], M, c, g, vx[n], inv_sigma[k], fmax[k], bank[k], out[n])
+
+
+@njit(cache=True, inline="always")
+def _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, tmp):
+    for _ in range(nsub):
+        _deriv(x, M, c, g, vx, inv_sigma, fmax, bank, k1)
+        for i in range(8):
+            tmp[i] = x[i] + 0.5 * h * k1[i]
+        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k2)
+        for i in range(8):
+            tmp[i] = x[i] + 0.5 * h * k2[i]
+        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k3)
+        for i in range(8):
+            tmp[i] = x[i] + h * k3[i]
+        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k4)
+        for i in range(8):
+            x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+
+
+@njit(cache=True)
+def step_one(x, tau, vx, W, inv_sigma, fmax, bank, dt, nsub):
+    """Advance one vehicle (``x`` shape (8,), modified in place) by one control
+    period ``dt`` with ``tau``, ``vx`` held; ``nsub`` RK4 substeps."""
+    M = np.empty((8, 8))
+    c = np.empty(8)
+    g = np.empty((8, 2))
+    k1 = np.empty(8)
+    k2 = np.empty(8)
+    k3 = np.empty(8)
+    k4 = np.empty(8)
+    tmp = np.empty(8)
+    _fold(W, vx, tau, M, c, g)
+    _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
+
+
+@njit(cache=True, parallel=True)
+def simulate_batch(x0, tau, vx, W, inv_sigma, fmax, bank, dt, nsub, out):
+    """``out[n, t]`` = state at ``t dt`` (``out[n, 0] = x0[n]``) for ``tau[n, t]``,
+    ``vx[n, t]`` held over ``[t dt, (t+1) dt)``. Vehicles run in parallel."""
+    N = x0.shape[0]
+    T = tau.shape[1]
+    K = W.shape[0]
+    for n in prange(N):
+        k = n if K > 1 else n - n
+        M = np.empty((8, 8))
+        c = np.empty(8)
+        g = np.empty((8, 2))
+        k1 = np.empty(8)
+        k2 = np.empty(8)
+        k3 = np.empty(8)
+        k4 = np.empty(8)
+        tmp = np.empty(8)
+        x = x0[n].copy()
+        out[n, 0] = x
+        for t in range(T):
+            _fold(W[k], vx[n, t], tau[n, t], M, c, g)
+            _rk4_period(x, M, c, g, vx[n, t], inv_sigma[k], fmax[k], bank[k], dt / nsub, nsub, k1, k2, k3, k4, tmp)
+            out[n, t + 1] = x

@@ -1,0 +1,242 @@
+"""The reference scooter: one definition of the Sharp-type lateral model.
+
+Every part of ptw-assist (environment, observers, controller design,
+diagnosis) takes its matrices from a :class:`Vehicle` built here. Nothing
+else in the code base writes a matrix entry of the model.
+
+The model (``shared/spec/model.md``, the contract) is
+
+.. math::
+
+    E \\dot x = (A_0 + v_x A_1) x + B \\tau
+    \\quad\\text{(+ sine terms in rows 5 and 6)}
+
+with ``x = [phi, delta, vy, r, phi_dot, delta_dot, Fyf, Fyr]`` (rad, rad, m/s,
+rad/s, rad/s, rad/s, N, N), the rider steering torque ``tau`` [N m] and the
+forward speed ``vx`` [m/s] as a measured, time-varying scheduling parameter.
+
+Provenance of the numbers
+-------------------------
+All entries are the "Scooter Big Baseline" (BikeSim) of Fouka, Nehaoua,
+Arioui, *Motorcycle state estimation and tire cornering stiffness
+identification ... using observer based identifiers*, Table IV, as
+transcribed in ``model.md``. Two printed entries are resolved there:
+
+* ``a71`` is printed ``-5319 vx``; it is ``+5319 vx`` (a positive front camber
+  stiffness reproduces ``a72`` to 0.3 %, a negative one misses by 4.6 %).
+* ``a84`` is printed ``79098 vx``; it is ``+79098`` with no ``vx`` factor
+  (it is ``C_alpha_r l_r / sigma_r`` like its front twin ``a74``).
+
+The yaw-moment arms ``a47 = 0.856`` and ``a48 = -0.624`` are kept as printed
+although the slip arms ``a74/a73 = 0.756`` and ``a84/a83 = 0.784`` differ.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+
+#: Gravity [m/s^2], the value model.md uses for the static loads.
+G = 9.81
+
+#: State names in order (model.md), used for logs, reports and labels.
+STATE_NAMES: tuple[str, ...] = ("phi", "delta", "vy", "r", "phi_dot", "delta_dot", "Fyf", "Fyr")
+#: Units of the states, same order.
+STATE_UNITS: tuple[str, ...] = ("rad", "rad", "m/s", "rad/s", "rad/s", "rad/s", "N", "N")
+
+PHI, DELTA, VY, R, PHI_DOT, DELTA_DOT, FYF, FYR = range(8)
+
+
+def _entries(n: int, spec: Mapping[tuple[int, int], float]) -> np.ndarray:
+    """Matrix from 1-based ``(row, col) -> value`` entries (as printed in model.md)."""
+    m = np.zeros((n, n))
+    for (i, j), v in spec.items():
+        m[i - 1, j - 1] = v
+    return m
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class TireParameters:
+    """Tire data derived from the printed rows 7-8 (model.md, "Derived nominal tire parameters").
+
+    Steady-state lateral force of axle ``k`` (model.md):
+    ``F_ss,k = -C_alpha_k alpha_k + C_gamma_k gamma_k`` with
+    ``alpha_f = (vy + lf_slip r - eta delta_dot)/vx - delta cos(eps)``,
+    ``gamma_f = phi + delta sin(eps)``, ``alpha_r = (vy - lr_slip r)/vx``,
+    ``gamma_r = phi``.
+    """
+
+    sigma_f: float = 0.2  #: front relaxation length [m] (a77 = -vx/sigma_f = -5 vx)
+    sigma_r: float = 0.2  #: rear relaxation length [m] (a88 = -5 vx)
+    C_alpha_f0: float = 22486.0  #: front cornering stiffness [N/rad] (= -a73 sigma_f)
+    C_gamma_f0: float = 1063.8  #: front camber stiffness [N/rad] (= a71/vx sigma_f)
+    C_alpha_r0: float = 20178.0  #: rear cornering stiffness [N/rad] (= -a83 sigma_r)
+    C_gamma_r0: float = 644.36  #: rear camber stiffness [N/rad] (= a81/vx sigma_r)
+    caster: float = 0.43631  #: caster angle eps [rad] (= asin(a62/a52) = 25.0 deg)
+    trail: float = 0.0894  #: mechanical trail eta [m] (= -a67)
+    lf_slip: float = 0.756  #: front slip arm [m] (= a74/a73)
+    lr_slip: float = 0.784  #: rear slip arm [m] (= a84/a83)
+    Fzf: float = 303.31 * G * 0.624 / (0.856 + 0.624)  #: static front load [N] (1254.5)
+    Fzr: float = 303.31 * G * 0.856 / (0.856 + 0.624)  #: static rear load [N] (1721.0)
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """Linear part of a Sharp-type PTW lateral model, ``E x' = (A0 + vx A1) x + B tau``.
+
+    Attributes
+    ----------
+    name : str
+        Identifier used in logs and reports.
+    E, A0, A1 : ndarray, shape (8, 8)
+        Mass matrix and the speed-independent / speed-proportional parts of the
+        state matrix (model.md). ``A0`` holds the *linear* gravity and trail
+        entries a51, a52, a61, a62; the nonlinear plant replaces them by sines
+        (:mod:`ptw_env.dynamics`).
+    B : ndarray, shape (8,)
+        Input vector (the torque enters row 6, the steering equation).
+    mass : float
+        Total mass M [kg] (e33), used for ``ay = (Fyf + Fyr)/M``.
+    tires : TireParameters
+        Derived tire data.
+    vmin, vmax : float
+        Valid forward-speed range [m/s] of the model (the environment ends an
+        episode outside it).
+    provenance : Mapping[str, str]
+        Where each group of numbers comes from.
+    """
+
+    name: str
+    E: np.ndarray
+    A0: np.ndarray
+    A1: np.ndarray
+    B: np.ndarray
+    mass: float
+    tires: TireParameters
+    vmin: float = 3.0
+    vmax: float = 40.0
+    provenance: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for nm, shape in (("E", (8, 8)), ("A0", (8, 8)), ("A1", (8, 8)), ("B", (8,))):
+            a = np.asarray(getattr(self, nm), dtype=float)
+            if a.shape != shape:
+                raise ValueError(f"Vehicle.{nm} must have shape {shape}, got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"Vehicle.{nm} has a non-finite entry")
+            object.__setattr__(self, nm, _frozen(a))
+        if not (0 < self.vmin < self.vmax):
+            raise ValueError(f"Vehicle speed range must satisfy 0 < vmin < vmax, got [{self.vmin}, {self.vmax}]")
+        if np.linalg.cond(self.E) > 1e10:
+            raise ValueError("Vehicle.E is singular (or nearly): the mass matrix must be invertible")
+        object.__setattr__(self, "provenance", MappingProxyType(dict(self.provenance)))
+
+    # -- the linear model -------------------------------------------------
+    def A(self, vx: float) -> np.ndarray:
+        """``A(vx) = A0 + vx A1`` (8 x 8)."""
+        return self.A0 + float(vx) * self.A1
+
+    def state_matrix(self, vx: float) -> np.ndarray:
+        """``E^-1 A(vx)``: the state matrix of the model linearised at the upright (phi = 0)."""
+        return np.linalg.solve(self.E, self.A(vx))
+
+    def input_matrix(self) -> np.ndarray:
+        """``E^-1 B`` as an (8, 1) column."""
+        return np.linalg.solve(self.E, self.B)[:, None]
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """The gravity/trail coefficients ``[[a51, a52], [a61, a62]]`` that carry sines in the plant."""
+        return self.A0[4:6, 0:2].copy()
+
+    def ay_row(self) -> np.ndarray:
+        """Output row of the lateral acceleration ``ay = (Fyf + Fyr)/M`` [m/s^2] (model.md)."""
+        c = np.zeros(8)
+        c[FYF] = c[FYR] = 1.0 / self.mass
+        return c
+
+
+_E = _entries(
+    8,
+    {
+        (1, 1): 1.0, (2, 2): 1.0, (7, 7): 1.0, (8, 8): 1.0,
+        (3, 3): 303.31, (3, 4): 6.32, (3, 5): 171.38, (3, 6): 0.187,
+        (4, 4): 34.73, (4, 5): 1.97, (4, 6): 0.66,
+        (5, 5): 118.02, (5, 6): 0.383,
+        (6, 6): 0.614,
+    },
+)
+# symmetric mass block on [vy, r, phi_dot, delta_dot]
+_E = np.triu(_E) + np.triu(_E, 1).T
+
+_A0 = _entries(
+    8,
+    {
+        (1, 5): 1.0,
+        (2, 6): 1.0,
+        (3, 7): 1.0, (3, 8): 1.0,
+        (4, 7): 0.856, (4, 8): -0.624,
+        (5, 1): 1681.0, (5, 2): 164.34,
+        (6, 1): 164.34, (6, 2): 69.45, (6, 6): -12.67, (6, 7): -0.0894,
+        (7, 3): -112430.0, (7, 4): -84997.0, (7, 6): 10051.0,
+        (8, 3): -100890.0, (8, 4): 79098.0,  # a84: resolved misprint (no vx factor)
+    },
+)
+
+_A1 = _entries(
+    8,
+    {
+        (3, 4): -303.31,
+        (4, 4): -6.319, (4, 5): -3.665, (4, 6): 0.682,
+        (5, 4): -175.048, (5, 6): -1.4622,
+        (6, 4): -0.8685, (6, 5): 1.47,
+        (7, 1): 5319.0,  # a71: resolved misprint (printed -5319 vx)
+        (7, 2): 104503.0, (7, 7): -5.0,
+        (8, 1): 3221.8, (8, 8): -5.0,
+    },
+)
+
+_B = np.zeros(8)
+_B[DELTA_DOT] = 1.0
+
+
+def reference_scooter() -> Vehicle:
+    """The reference scooter of ``shared/spec/model.md`` (BikeSim "Scooter Big Baseline").
+
+    Examples
+    --------
+    >>> v = reference_scooter()
+    >>> round(v.mass, 2), v.E.shape
+    (303.31, (8, 8))
+    """
+    return Vehicle(
+        name="reference-scooter",
+        E=_E,
+        A0=_A0,
+        A1=_A1,
+        B=_B,
+        mass=303.31,
+        tires=TireParameters(),
+        vmin=3.0,
+        vmax=40.0,
+        provenance={
+            "E, A0, A1, B": "Fouka, Nehaoua, Arioui, Table IV (BikeSim Scooter Big Baseline), as in shared/spec/model.md",
+            "a71": "printed -5319 vx, taken +5319 vx (model.md: positive camber stiffness reproduces a72 to 0.3 %)",
+            "a84": "printed 79098 vx, taken +79098 (model.md: C_alpha_r l_r / sigma_r, like a74)",
+            "tires": "derived from rows 7-8 with sigma = 0.2 m (model.md, derived nominal tire parameters)",
+            "Fzf, Fzr": "M g arms from a47, a48 (model.md)",
+            "vmin, vmax": "ptw-assist choice: 3-40 m/s (the tire modes reach |lambda| ~ 200 rad/s at 40 m/s)",
+        },
+    )
+
+
+REFERENCE_SCOOTER = reference_scooter()
