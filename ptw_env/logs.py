@@ -1,0 +1,634 @@
+"""Ride logs: read and write the measured-data format of ``shared/spec/logs.md``.
+
+A ride log is a UTF-8 CSV file, one header line then one row per sample at a
+fixed rate (nominally 100 Hz), with an optional JSON sidecar ``<name>.json``
+beside ``<name>.csv``. Columns (SI units, radians; any order; extra columns
+are kept):
+
+==========  =========================================  =======  ========
+column      meaning                                    unit     required
+==========  =========================================  =======  ========
+t           time since start, strictly increasing      s        yes
+tau         rider steering torque (the known input)    N m      yes
+vx          forward speed, measured                    m/s      yes
+delta       steering angle, encoder                    rad      yes
+delta_rate  steering rate, encoder                     rad/s    yes
+yaw_rate    yaw rate, IMU gyro                         rad/s    yes
+roll_rate   roll rate, IMU gyro                        rad/s    yes
+ay          lateral acceleration, model (road) frame   m/s^2    yes
+roll        roll angle, IMU attitude filter            rad      no
+==========  =========================================  =======  ========
+
+What the reader accepts and rejects
+-----------------------------------
+Accepted: column order is free; extra columns; surrounding spaces in cells and
+header names; a UTF-8 byte-order mark; ``\\n`` or ``\\r\\n`` line ends; blank
+lines at the end of the file; a missing sidecar. An **empty cell is a
+dropout** and reads as NaN; the text ``nan`` (any case, as ``numpy.savetxt``
+writes it) is read the same way, since it can only mean a missing value.
+
+Rejected with :class:`LogFormatError` (one message naming the file, the line,
+1-based with the header on line 1, and the column): an empty file; a header
+with an empty, duplicated or missing required column name; a row with the
+wrong number of fields; a cell that is not a number; ``inf`` in any cell
+(a sensor never reads infinity; it is a broken export); an empty or ``nan``
+time ``t`` (time cannot be missing); time that does not strictly increase
+(both lines named); non-uniform sampling, a step differing from the median
+step by more than :data:`SAMPLING_TOLERANCE` (1 %) of it (e.g. dropped rows;
+a dropout must be a row of empty cells, not a missing row); a log shorter than
+:data:`MIN_SAMPLES` samples or ``min_duration_s``; a sidecar that is not a
+JSON object (named with its line and character column), or whose
+``sample_rate_hz`` disagrees with the CSV's time column by more than 1 %.
+
+Examples
+--------
+>>> import numpy as np, tempfile, pathlib
+>>> t = np.arange(200) * 0.01
+>>> cols = {c: np.zeros_like(t) for c in REQUIRED_COLUMNS}
+>>> cols["t"] = t
+>>> p = pathlib.Path(tempfile.mkdtemp()) / "ride.csv"
+>>> _ = write_log(p, cols, meta={"vehicle": "reference-scooter", "sample_rate_hz": 100})
+>>> log = read_log(p)
+>>> len(log), round(log.sample_rate_hz, 6), round(log.duration_s, 6), log.meta["vehicle"]
+(200, 100.0, 2.0, 'reference-scooter')
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+#: Columns every ride log has (logs.md).
+REQUIRED_COLUMNS: tuple[str, ...] = ("t", "tau", "vx", "delta", "delta_rate", "yaw_rate", "roll_rate", "ay")
+#: Columns a ride log may have that the project knows (logs.md).
+OPTIONAL_COLUMNS: tuple[str, ...] = ("roll",)
+#: Column order in written files: logs.md order, then extras in their given order.
+KNOWN_COLUMNS: tuple[str, ...] = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
+#: Units of the known columns (logs.md).
+COLUMN_UNITS: Mapping[str, str] = {
+    "t": "s", "tau": "N m", "vx": "m/s", "delta": "rad", "delta_rate": "rad/s",
+    "yaw_rate": "rad/s", "roll_rate": "rad/s", "ay": "m/s^2", "roll": "rad",
+}  # fmt: skip
+
+#: Fewest samples a log may have (two give a rate; ten make it a signal).
+MIN_SAMPLES = 10
+#: Largest allowed deviation of one time step from the median step, relative [-].
+SAMPLING_TOLERANCE = 0.01
+
+
+class LogFormatError(ValueError):
+    """A ride-log file (or its sidecar) that breaks logs.md.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The offending file (the CSV, or the ``.json`` sidecar).
+    line : int or None
+        1-based line number (the CSV header is line 1); ``None`` when the
+        problem is not on one line.
+    column : str, int or None
+        The CSV column name; for a sidecar, the 1-based character column of
+        the JSON error; ``None`` when not tied to one column.
+    reason : str
+        What is wrong, without the location.
+    """
+
+    def __init__(self, path: str | os.PathLike, line: int | None, column: str | int | None, reason: str) -> None:
+        self.path = Path(path)
+        self.line = line
+        self.column = column
+        self.reason = reason
+        where = [str(path)]
+        if line is not None:
+            where.append(f"line {line}")
+        if column is not None:
+            where.append(f"column {column!r}" if isinstance(column, str) else f"column {column}")
+        super().__init__(f"{', '.join(where)}: {reason}")
+
+    def __reduce__(self):
+        return (type(self), (self.path, self.line, self.column, self.reason))
+
+
+class LogDataError(ValueError):
+    """In-memory log data that cannot make a valid ride log (writer and :class:`RideLog` checks).
+
+    Attributes
+    ----------
+    column : str or None
+        The offending column.
+    index : int or None
+        0-based sample index of the offending value, when there is one.
+    """
+
+    def __init__(self, message: str, column: str | None = None, index: int | None = None) -> None:
+        self.column = column
+        self.index = index
+        super().__init__(message)
+
+
+# --------------------------------------------------------------------------- checks on numbers
+
+
+def _first_true(mask: np.ndarray) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) if idx.size else None
+
+
+def _time_problem(t: np.ndarray, where: Callable[[int], str] = lambda i: "") -> tuple[str, int] | None:
+    """``(reason, index)`` for the first problem of a time column, else None.
+
+    Checks: finite, strictly increasing, uniform within SAMPLING_TOLERANCE.
+    ``where(i)`` locates the other sample involved (e.g. " on line 41").
+    """
+    i = _first_true(~np.isfinite(t))
+    if i is not None:
+        return ("t cannot be missing or infinite; every row needs its time", i)
+    if t.size < 2:
+        return None
+    d = np.diff(t)
+    i = _first_true(d <= 0.0)
+    if i is not None:
+        return (f"t = {float(t[i + 1])!r} s does not increase from t = {float(t[i])!r} s{where(i)}", i + 1)
+    h = float(np.median(d))
+    i = _first_true(np.abs(d - h) > SAMPLING_TOLERANCE * h)
+    if i is not None:
+        return (
+            f"non-uniform sampling: the step from t = {float(t[i])!r} s{where(i)} to t = {float(t[i + 1])!r} s "
+            f"is {d[i]:.6g} s, "
+            f"the log's median step is {h:.6g} s (tolerance {SAMPLING_TOLERANCE:.0%}); "
+            "rows missing? a dropout must be a row of empty cells",
+            i + 1,
+        )
+    return None
+
+
+def _length_problem(t: np.ndarray, min_duration_s: float) -> str | None:
+    n = t.size
+    dur = n * float(np.median(np.diff(t))) if n > 1 else 0.0
+    if n < MIN_SAMPLES or dur < min_duration_s:
+        return (
+            f"the log is too short to analyse: {n} samples, {dur:.6g} s; "
+            f"at least {MIN_SAMPLES} samples and {min_duration_s:g} s are needed"
+        )
+    return None
+
+
+def _rate_problem(meta: Mapping[str, Any], t: np.ndarray) -> str | None:
+    if "sample_rate_hz" not in meta or t.size < 2:
+        return None
+    r = meta["sample_rate_hz"]
+    if isinstance(r, bool) or not isinstance(r, (int, float)) or not (math.isfinite(r) and r > 0):
+        return f"sample_rate_hz must be a positive number, got {r!r}"
+    rate = 1.0 / float(np.median(np.diff(t)))
+    if abs(rate - r) > SAMPLING_TOLERANCE * r:
+        return f"sample_rate_hz = {r!r} disagrees with the log's time column ({rate:.6g} Hz)"
+    return None
+
+
+def _check_name(name: Any) -> str:
+    if not isinstance(name, str) or not name or name != name.strip() or any(ch in name for ch in ',"\r\n'):
+        raise LogDataError(
+            f"column name {name!r} cannot be written: it must be a non-empty string without commas, "
+            "quotes, line breaks or surrounding spaces",
+            column=name if isinstance(name, str) else None,
+        )
+    return name
+
+
+# --------------------------------------------------------------------------- the log object
+
+
+@dataclass
+class RideLog:
+    """A ride log in memory (logs.md).
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Time [s], finite, strictly increasing, uniformly sampled.
+    columns : dict str -> ndarray (N,)
+        Every numeric column of the log in file order, ``t`` included (it is
+        put first when left out), extras kept. NaN marks a dropout.
+    meta : dict
+        Sidecar content (``{}`` when there is none).
+    path : Path or None
+        Where the log was read from.
+
+    Raises
+    ------
+    LogDataError
+        Missing required column, columns of different lengths, a non-numeric
+        or infinite value, or a bad time column.
+    """
+
+    t: np.ndarray
+    columns: dict[str, np.ndarray]
+    meta: dict = field(default_factory=dict)
+    path: Path | None = None
+
+    def __post_init__(self) -> None:
+        t = self._as_column("t", self.t)
+        if not isinstance(self.columns, Mapping):
+            raise LogDataError(f"columns must be a mapping name -> array, got {type(self.columns).__name__}")
+        if "t" in self.columns:
+            tc = self._as_column("t", self.columns["t"])
+            if tc.shape != t.shape or not np.array_equal(tc, t, equal_nan=True):
+                raise LogDataError("columns['t'] differs from t", column="t")
+        cols: dict[str, np.ndarray] = {} if "t" in self.columns else {"t": t}  # file order kept
+        for name, values in self.columns.items():
+            cols[_check_name(name)] = t if name == "t" else self._as_column(name, values)
+        missing = [c for c in REQUIRED_COLUMNS if c not in cols]
+        if missing:
+            raise LogDataError(
+                f"missing required column(s) {', '.join(missing)}; found {', '.join(cols)}", column=missing[0]
+            )
+        n = t.size
+        for name, v in cols.items():
+            if v.size != n:
+                raise LogDataError(f"column {name!r} has {v.size} samples, t has {n}", column=name)
+            i = _first_true(np.isinf(v))
+            if i is not None:
+                raise LogDataError(f"column {name!r} is infinite at sample {i}", column=name, index=i)
+        problem = _time_problem(t, lambda i: f" (sample {i})")
+        if problem is not None:
+            raise LogDataError(f"column 't' at sample {problem[1]}: {problem[0]}", column="t", index=problem[1])
+        if not isinstance(self.meta, dict):
+            raise LogDataError(f"meta must be a dict, got {type(self.meta).__name__}")
+        rate = _rate_problem(self.meta, t)
+        if rate is not None:
+            raise LogDataError(f"meta: {rate}")
+        self.t = t
+        self.columns = cols
+        if self.path is not None:
+            self.path = Path(self.path)
+
+    @staticmethod
+    def _as_column(name: str, values: Any) -> np.ndarray:
+        try:
+            v = np.array(values, dtype=float)
+        except (TypeError, ValueError):
+            raise LogDataError(f"column {name!r} is not numeric", column=name) from None
+        if v.ndim != 1:
+            raise LogDataError(f"column {name!r} must be one-dimensional, got shape {v.shape}", column=name)
+        return v
+
+    # -- channels -----------------------------------------------------------------
+    def __getitem__(self, column: str) -> np.ndarray:
+        if column not in self.columns:
+            raise LogDataError(f"the log has no column {column!r}; it has {', '.join(self.columns)}", column=column)
+        return self.columns[column]
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Rider steering torque [N m]."""
+        return self.columns["tau"]
+
+    @property
+    def vx(self) -> np.ndarray:
+        """Measured forward speed [m/s]."""
+        return self.columns["vx"]
+
+    @property
+    def delta(self) -> np.ndarray:
+        """Steering angle [rad]."""
+        return self.columns["delta"]
+
+    @property
+    def delta_rate(self) -> np.ndarray:
+        """Steering rate [rad/s]."""
+        return self.columns["delta_rate"]
+
+    @property
+    def yaw_rate(self) -> np.ndarray:
+        """Yaw rate [rad/s]."""
+        return self.columns["yaw_rate"]
+
+    @property
+    def roll_rate(self) -> np.ndarray:
+        """Roll rate [rad/s]."""
+        return self.columns["roll_rate"]
+
+    @property
+    def ay(self) -> np.ndarray:
+        """Lateral acceleration in the model (road-plane) frame [m/s^2]."""
+        return self.columns["ay"]
+
+    @property
+    def roll(self) -> np.ndarray | None:
+        """Roll angle [rad] (optional column; ``None`` when the log has none)."""
+        return self.columns.get("roll")
+
+    # -- timing -------------------------------------------------------------------
+    @property
+    def dt(self) -> float:
+        """Sample period [s] (median time step)."""
+        return float(np.median(np.diff(self.t))) if self.t.size > 1 else math.nan
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Sample rate [Hz], ``1 / dt``."""
+        return 1.0 / self.dt
+
+    @property
+    def duration_s(self) -> float:
+        """Time covered by the samples [s], ``N dt = t[-1] - t[0] + dt`` (each sample
+        holds over one period; the sidecars' ``duration_s`` convention)."""
+        return len(self) * self.dt if len(self) > 1 else 0.0
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    def has(self, column: str) -> bool:
+        """Whether the log has ``column``."""
+        return column in self.columns
+
+    def to_array(self, columns: Sequence[str]) -> np.ndarray:
+        """The named columns side by side, shape ``(N, len(columns))``."""
+        if isinstance(columns, str):
+            columns = [columns]
+        return np.column_stack([self[c] for c in columns]) if columns else np.empty((len(self), 0))
+
+
+# --------------------------------------------------------------------------- reader
+
+
+def _sidecar_path(path: Path) -> Path:
+    return path.with_suffix(".json")
+
+
+def _line_of_key(text: str, key: str) -> int | None:
+    pos = text.find(f'"{key}"')
+    return text.count("\n", 0, pos) + 1 if pos >= 0 else None
+
+
+def _read_sidecar(sidecar: Path) -> tuple[dict, str]:
+    raw = sidecar.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise LogFormatError(sidecar, raw.count(b"\n", 0, e.start) + 1, None, "not UTF-8 text") from None
+    try:
+        meta = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise LogFormatError(sidecar, e.lineno, e.colno, f"not valid JSON: {e.msg}") from None
+    if not isinstance(meta, dict):
+        raise LogFormatError(sidecar, 1, None, f"the sidecar must be a JSON object {{...}}, got {type(meta).__name__}")
+    return meta, text
+
+
+def _cell_error(path: Path, line: int, name: str, cell: str) -> LogFormatError | None:
+    """The error for one cell, or None if it is a number or a dropout."""
+    s = cell.strip()
+    if not s or s.lower() == "nan":
+        return LogFormatError(path, line, name, "t is missing; time cannot be missing") if name == "t" else None
+    try:
+        v = float(s)
+    except ValueError:
+        return LogFormatError(path, line, name, f"{cell!r} is not a number")
+    if math.isinf(v):
+        return LogFormatError(path, line, name, f"{cell!r} is not finite (a dropout is an empty cell)")
+    return None
+
+
+def read_log(path: str | os.PathLike, min_duration_s: float = 1.0) -> RideLog:
+    """Read a ride log (logs.md) and its sidecar, or say exactly what is wrong.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file. Its sidecar is the same name with ``.json``.
+    min_duration_s : float
+        Shortest accepted log, :attr:`RideLog.duration_s` ``= N dt`` [s]; a log also needs
+        :data:`MIN_SAMPLES` samples.
+
+    Returns
+    -------
+    RideLog
+        All columns as float arrays (NaN = dropout), the sidecar as ``meta``.
+
+    Raises
+    ------
+    FileNotFoundError
+        No file at ``path``.
+    LogFormatError
+        The file or its sidecar breaks logs.md; see the module docstring for
+        the cases. The message names the file, the 1-based line and the column.
+    """
+    try:
+        min_dur = float(min_duration_s)
+    except (TypeError, ValueError):
+        raise LogDataError(f"min_duration_s must be a number of seconds, got {min_duration_s!r}") from None
+    if not (math.isfinite(min_dur) and min_dur >= 0.0):
+        raise LogDataError(f"min_duration_s must be finite and >= 0, got {min_duration_s!r}")
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        raise LogFormatError(path, None, None, "this is a sidecar; pass the .csv log beside it")
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise LogFormatError(path, raw.count(b"\n", 0, e.start) + 1, None, "not UTF-8 text") from None
+    if not text.strip():
+        raise LogFormatError(path, 1, None, f"the file is empty; expected a header line {','.join(REQUIRED_COLUMNS)}")
+
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        header = next(reader)
+        while not header:  # leading blank lines
+            header = next(reader)
+        hline = reader.line_num
+        names = [h.strip() for h in header]
+        seen: dict[str, int] = {}
+        for j, name in enumerate(names, 1):
+            if not name:
+                raise LogFormatError(path, hline, j, f"the header's field {j} is empty; every column needs a name")
+            if name in seen:
+                raise LogFormatError(path, hline, name, f"duplicate column name (fields {seen[name]} and {j})")
+            seen[name] = j
+        missing = [c for c in REQUIRED_COLUMNS if c not in seen]
+        if missing:
+            raise LogFormatError(
+                path, hline, missing[0],
+                f"missing required column(s) {', '.join(missing)}; the header has {', '.join(names)}",
+            )  # fmt: skip
+
+        ncol = len(names)
+        rows: list[list[float]] = []
+        lines: list[int] = []
+        blank: int | None = None  # first blank line after the last data row
+        nan = math.nan
+        for rec in reader:
+            line = reader.line_num
+            if not rec or (len(rec) == 1 and not rec[0].strip() and ncol > 1):
+                blank = line if blank is None else blank
+                continue
+            if blank is not None:
+                raise LogFormatError(path, blank, None, f"blank line inside the data; expected {ncol} fields")
+            if len(rec) != ncol:
+                col = names[len(rec)] if len(rec) < ncol else None
+                raise LogFormatError(path, line, col, f"the row has {len(rec)} fields, the header has {ncol}")
+            try:
+                vals = [float(c) for c in rec]
+                bad = not math.isfinite(sum(vals))  # NaN, inf or (rarely) overflow
+            except (ValueError, OverflowError):
+                vals, bad = [], True
+            if bad:  # find the first offending cell, left to right; keep dropouts
+                vals = []
+                for name, cell in zip(names, rec):
+                    err = _cell_error(path, line, name, cell)
+                    if err is not None:
+                        raise err
+                    s = cell.strip()
+                    vals.append(float(s) if s else nan)
+            rows.append(vals)
+            lines.append(line)
+    except csv.Error as e:
+        raise LogFormatError(path, reader.line_num, None, f"not valid CSV: {e}") from None
+    except StopIteration:  # pragma: no cover - guarded by the empty-file check
+        raise LogFormatError(path, 1, None, "no header line") from None
+
+    data = np.array(rows, dtype=float).reshape(len(rows), ncol)
+    t = data[:, names.index("t")]
+    problem = _time_problem(t, lambda i: f" on line {lines[i]}")
+    if problem is not None:
+        raise LogFormatError(path, lines[problem[1]], "t", problem[0])
+    problem = _length_problem(t, min_dur)
+    if problem is not None:
+        raise LogFormatError(path, lines[-1] if lines else hline, "t", problem)
+
+    meta: dict = {}
+    sidecar = _sidecar_path(path)
+    if sidecar.is_file():
+        meta, mtext = _read_sidecar(sidecar)
+        rate = _rate_problem(meta, t)
+        if rate is not None:
+            raise LogFormatError(sidecar, _line_of_key(mtext, "sample_rate_hz"), "sample_rate_hz", rate)
+    columns = {name: np.ascontiguousarray(data[:, j]) for j, name in enumerate(names)}
+    return RideLog(t=columns["t"], columns=columns, meta=meta, path=path)
+
+
+# --------------------------------------------------------------------------- writer
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"meta: {type(o).__name__} {o!r} is not JSON-serialisable")
+
+
+def _fmt(values: np.ndarray) -> list[str]:
+    # repr of a Python float is the shortest string that reads back to the same double
+    return ["" if v != v else repr(v) for v in values.tolist()]
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_log(
+    path: str | os.PathLike,
+    log_or_columns: RideLog | Mapping[str, Any],
+    meta: Mapping[str, Any] | None = None,
+    overwrite: bool = False,
+) -> Path:
+    """Write a ride log (logs.md) and, with metadata, its sidecar ``<name>.json``.
+
+    Columns are written in logs.md order (:data:`KNOWN_COLUMNS`), then the
+    extra columns in their given order. Numbers are written with Python's
+    ``repr``, the shortest text that reads back to the identical double (exact
+    round trip); NaN (a dropout) is written as an empty cell. Files are written
+    to a temporary file and renamed, so a failed write leaves nothing half done.
+
+    Parameters
+    ----------
+    path : path-like
+        The CSV file to write (conventionally ``.csv``).
+    log_or_columns : RideLog or mapping column -> array
+        The data; a mapping is checked as :class:`RideLog` checks it.
+    meta : mapping, optional
+        Sidecar content. When ``None``, a :class:`RideLog`'s own non-empty
+        ``meta`` is used; otherwise no sidecar is written.
+    overwrite : bool
+        Replace existing files. The sidecar counts as part of the log: without
+        ``overwrite`` an existing sidecar is an error too (it would be read
+        with the new CSV), and with ``overwrite`` a stale sidecar is removed
+        when the new log has no metadata.
+
+    Returns
+    -------
+    Path
+        The CSV path.
+
+    Raises
+    ------
+    FileExistsError
+        The CSV or its sidecar exists and ``overwrite`` is False.
+    LogDataError
+        The data cannot make a valid log (missing required column, lengths
+        differ, infinite values, time not finite/increasing/uniform, a column
+        name with a comma, meta not JSON-serialisable or contradicting the
+        time column).
+    """
+    if not isinstance(overwrite, bool):
+        raise LogDataError(f"overwrite must be True or False, got {overwrite!r}")
+    if isinstance(log_or_columns, RideLog):
+        log = log_or_columns
+        if meta is None and log.meta:
+            meta = log.meta
+    elif isinstance(log_or_columns, Mapping):
+        cols = dict(log_or_columns)
+        if "t" not in cols:
+            raise LogDataError(f"missing required column t; found {', '.join(map(str, cols))}", column="t")
+        log = RideLog(t=cols["t"], columns=cols)
+    else:
+        raise LogDataError(f"write_log takes a RideLog or a mapping of columns, got {type(log_or_columns).__name__}")
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        raise LogDataError(f"{path}: a log cannot be a .json file (that name is its sidecar's)")
+    sidecar = _sidecar_path(path)
+    meta_text = None
+    if meta is not None:
+        if not isinstance(meta, Mapping):
+            raise LogDataError(f"meta must be a mapping, got {type(meta).__name__}")
+        rate = _rate_problem(meta, log.t)
+        if rate is not None:
+            raise LogDataError(f"meta: {rate}")
+        try:
+            meta_text = json.dumps(dict(meta), indent=1, default=_json_default) + "\n"
+        except (TypeError, ValueError) as e:
+            raise LogDataError(str(e)) from None
+    if not overwrite:
+        for p in (path, sidecar):
+            if p.exists():
+                raise FileExistsError(f"{p} exists; pass overwrite=True to replace it")
+
+    order = [c for c in KNOWN_COLUMNS if c in log.columns] + [c for c in log.columns if c not in KNOWN_COLUMNS]
+    cells = [_fmt(log.columns[c]) for c in order]
+    body = "\n".join(",".join(r) for r in zip(*cells))
+    _atomic_write(path, ",".join(order) + "\n" + body + ("\n" if body else ""))
+    if meta_text is not None:
+        _atomic_write(sidecar, meta_text)
+    elif overwrite and sidecar.exists():
+        sidecar.unlink()
+    return path
