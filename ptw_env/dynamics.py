@@ -20,7 +20,8 @@ the printed rows 7-8 (``F_lin,k = (sigma_0/vx) sum_{j != k} a_kj x_j``).
 :func:`compile_plant` folds a :class:`~ptw_env.vehicle.Vehicle` and an
 :class:`~ptw_env.effects.Effects` into one matrix ``W`` so that the
 mechanical rows are a single matrix product with the feature vector
-``z = [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1]``; effect
+``z = [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, d]`` (``d``: an
+external roll moment [N m], the environment's disturbance input); effect
 parameters given as arrays give one ``W`` per vehicle of the batch.
 """
 
@@ -36,7 +37,7 @@ from .vehicle import DELTA_DOT, FYF, FYR, G, REFERENCE_SCOOTER, Vehicle
 
 #: number of features in z
 NZ = 29
-_ZX, _ZVX, _ZIV, _ZS1, _ZS2, _ZTAU, _ZONE = 0, 8, 16, 24, 25, 26, 27
+_ZX, _ZVX, _ZIV, _ZS1, _ZS2, _ZTAU, _ZONE, _ZDIST = 0, 8, 16, 24, 25, 26, 27, 28
 # (z[28] is a spare zero column that keeps the layout aligned; unused)
 
 
@@ -196,6 +197,7 @@ def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
     W[..., 0:6, _ZS1 : _ZS1 + 2] = (Einv @ grav)[..., 0:6, :]
     W[..., 0:6, _ZTAU] = (Einv @ Bv)[..., 0:6]
     W[..., 0:6, _ZONE] = np.einsum("...ij,...j->...i", Einv, const)[..., 0:6]
+    W[..., 0:6, _ZDIST] = Einv[..., 0:6, 4]  # external roll moment enters row 5 like the offset
     # the tire columns of rows 0..5 (forces acting on the body) stay in W[.., 0:6, _ZX+6:_ZX+8] above
     W[..., 6:8, _ZIV : _ZIV + 8] = tire0
     W[..., 6:8, _ZX : _ZX + 8] = tire1

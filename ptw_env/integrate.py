@@ -156,6 +156,7 @@ class Stepper:
         W, s, f, b = plant.flat()
         self._W, self._inv_sigma, self._fmax, self._bank = W[0], s[0], f[0], float(b[0])
 
-    def step(self, x: np.ndarray, tau: float, vx: float) -> None:
-        """Advance ``x`` (shape (8,), float64, modified in place) by ``dt``."""
-        kernels.step_one(x, tau, vx, self._W, self._inv_sigma, self._fmax, self._bank, self.dt, self.nsub)
+    def step(self, x: np.ndarray, tau: float, vx: float, roll_moment: float = 0.0) -> None:
+        """Advance ``x`` (shape (8,), float64, modified in place) by ``dt`` with ``tau`` [N m],
+        ``vx`` [m/s] and an external roll moment [N m] (disturbance) held over the period."""
+        kernels.step_one(x, tau, vx, roll_moment, self._W, self._inv_sigma, self._fmax, self._bank, self.dt, self.nsub)

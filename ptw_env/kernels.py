@@ -7,7 +7,8 @@ matrices it reads are built by :func:`ptw_env.dynamics.compile_plant` from
 the one vehicle definition; see there for the equations.
 
 Layout of a compiled plant row ``W[i]`` (i = 0..5: ``x'_i``; i = 6, 7:
-``F_lin`` front/rear): ``W[i] . [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, 0]``.
+``F_lin`` front/rear): ``W[i] . [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, d]`` where ``d`` is an
+external roll moment [N m] (a disturbance input, 0 unless the environment injects one).
 
 Over one control period ``vx`` and ``tau`` are held (zero-order hold, as in
 the reference ride logs), so each period first folds them into an 8 x 8
@@ -22,13 +23,13 @@ from numba import njit, prange
 
 
 @njit(cache=True, inline="always")
-def _fold(W, vx, tau, M, c, g):
+def _fold(W, vx, tau, d, M, c, g):
     for i in range(8):
         for j in range(8):
             M[i, j] = W[i, j] + vx * W[i, 8 + j] + W[i, 16 + j] / vx
         g[i, 0] = W[i, 24]
         g[i, 1] = W[i, 25]
-        c[i] = W[i, 26] * tau + W[i, 27]
+        c[i] = W[i, 26] * tau + W[i, 27] + W[i, 28] * d
 
 
 @njit(cache=True, inline="always")
@@ -60,7 +61,7 @@ def rhs_into(x, tau, vx, W, inv_sigma, fmax, bank, out):
     K = W.shape[0]
     for n in range(x.shape[0]):
         k = n if K > 1 else n - n
-        _fold(W[k], vx[n], tau[n], M, c, g)
+        _fold(W[k], vx[n], tau[n], 0.0, M, c, g)
         _deriv(x[n], M, c, g, vx[n], inv_sigma[k], fmax[k], bank[k], out[n])
 
 
@@ -82,9 +83,10 @@ def _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, 
 
 
 @njit(cache=True)
-def step_one(x, tau, vx, W, inv_sigma, fmax, bank, dt, nsub):
+def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
     """Advance one vehicle (``x`` shape (8,), modified in place) by one control
-    period ``dt`` with ``tau``, ``vx`` held; ``nsub`` RK4 substeps."""
+    period ``dt`` with ``tau``, ``vx`` and the roll-moment disturbance ``d`` held;
+    ``nsub`` RK4 substeps."""
     M = np.empty((8, 8))
     c = np.empty(8)
     g = np.empty((8, 2))
@@ -93,7 +95,7 @@ def step_one(x, tau, vx, W, inv_sigma, fmax, bank, dt, nsub):
     k3 = np.empty(8)
     k4 = np.empty(8)
     tmp = np.empty(8)
-    _fold(W, vx, tau, M, c, g)
+    _fold(W, vx, tau, d, M, c, g)
     _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
 
 
@@ -117,6 +119,6 @@ def simulate_batch(x0, tau, vx, W, inv_sigma, fmax, bank, dt, nsub, out):
         x = x0[n].copy()
         out[n, 0] = x
         for t in range(T):
-            _fold(W[k], vx[n, t], tau[n, t], M, c, g)
+            _fold(W[k], vx[n, t], tau[n, t], 0.0, M, c, g)
             _rk4_period(x, M, c, g, vx[n, t], inv_sigma[k], fmax[k], bank[k], dt / nsub, nsub, k1, k2, k3, k4, tmp)
             out[n, t + 1] = x

@@ -89,7 +89,7 @@ class TireParameters:
     Fzr: float = 303.31 * G * 0.856 / (0.856 + 0.624)  #: static rear load [N] (1721.0)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Vehicle:
     """Linear part of a Sharp-type PTW lateral model, ``E x' = (A0 + vx A1) x + B tau``.
 
@@ -139,6 +139,14 @@ class Vehicle:
         if np.linalg.cond(self.E) > 1e10:
             raise ValueError("Vehicle.E is singular (or nearly): the mass matrix must be invertible")
         object.__setattr__(self, "provenance", MappingProxyType(dict(self.provenance)))
+
+    def __reduce__(self):
+        # MappingProxyType does not pickle: rebuild from the fields
+        return (
+            Vehicle,
+            (self.name, self.E, self.A0, self.A1, self.B, self.mass, self.tires, self.vmin, self.vmax,
+             dict(self.provenance)),
+        )
 
     # -- the linear model -------------------------------------------------
     def A(self, vx: float) -> np.ndarray:

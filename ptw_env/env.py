@@ -1,0 +1,413 @@
+"""Gymnasium environment: roll-angle tracking on the nonlinear PTW with noisy sensors."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .dynamics import compile_plant
+from .effects import Effects, as_effects
+from .integrate import Stepper
+from .scenarios import Scenario, make_scenario
+from .sensors import CHANNELS, SensorConfig, SensorModel
+from .vehicle import REFERENCE_SCOOTER, Vehicle
+
+#: Fall threshold [rad]: the model is valid for |phi| <= 45 deg (model.md).
+FALL_ANGLE = math.radians(45.0)
+
+
+class EnvConfigError(ValueError):
+    """A bad argument to :class:`PTWRollEnv` (names the argument)."""
+
+
+class InvalidActionError(ValueError):
+    """A NaN or infinite action."""
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """An external disturbance, in the spirit of safe-control-gym's ``disturbances``.
+
+    Parameters
+    ----------
+    channel : {"torque", "roll_moment"}
+        ``torque`` is added to the rider torque [N m] (row 6); ``roll_moment``
+        is an external moment about the roll axis [N m] (row 5: a gust, a
+        rider shifting weight).
+    kind : {"white_noise", "step", "impulse"}
+        White noise of standard deviation ``magnitude`` held over each period,
+        a step of ``magnitude`` from ``start_s`` on, or a pulse of ``magnitude``
+        over ``[start_s, start_s + duration_s)``.
+    magnitude : float
+        N m.
+    start_s, duration_s : float
+        Seconds.
+    """
+
+    channel: str = "torque"
+    kind: str = "white_noise"
+    magnitude: float = 1.0
+    start_s: float = 0.0
+    duration_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.channel not in ("torque", "roll_moment"):
+            raise EnvConfigError(f"Disturbance.channel must be 'torque' or 'roll_moment', got {self.channel!r}")
+        if self.kind not in ("white_noise", "step", "impulse"):
+            raise EnvConfigError(f"Disturbance.kind must be white_noise, step or impulse, got {self.kind!r}")
+        for name in ("magnitude", "start_s", "duration_s"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise EnvConfigError(f"Disturbance.{name} must be a finite number, got {v!r}")
+        if self.kind == "white_noise" and self.magnitude < 0:
+            raise EnvConfigError(f"Disturbance.magnitude (a standard deviation) must be >= 0, got {self.magnitude}")
+        if self.duration_s < 0 or self.start_s < 0:
+            raise EnvConfigError("Disturbance.start_s and duration_s must be >= 0")
+
+    def value(self, t: float, rng: np.random.Generator) -> float:
+        """Disturbance at time ``t`` [s]; draws from ``rng`` for white noise."""
+        if self.kind == "white_noise":
+            return float(rng.normal(0.0, self.magnitude)) if t >= self.start_s else 0.0
+        if self.kind == "step":
+            return self.magnitude if t >= self.start_s else 0.0
+        return self.magnitude if self.start_s <= t < self.start_s + self.duration_s else 0.0
+
+
+class PTWRollEnv(gym.Env):
+    """Roll-angle tracking with the steering torque on a nonlinear scooter.
+
+    The plant is the reference scooter of ``shared/spec/model.md`` (Sharp-type
+    4-DoF lateral model, first-order tire relaxation, sine gravity/trail
+    terms), optionally with the effects of ``shared/spec/effects.md``,
+    integrated with RK4 (2.5 ms substeps) while the action and the speed are
+    held over each control period ``dt`` = 10 ms. The forward speed follows
+    the scenario's profile (exogenous, time-varying); the agent sees only
+    noisy sensors (``shared/spec/logs.md``) and the roll reference
+    ``phi_ref = atan(vx^2 kappa / g)`` of the scenario's path.
+
+    Action space
+    ------------
+    ``Box(-tau_max, tau_max, (1,), float32)``: the rider steering torque [N m]
+    (``tau_max`` = 60 N m by default). With ``normalize_action=True`` the box
+    is ``[-1, 1]`` and scaled by ``tau_max``. Actions outside the box are
+    clipped (the rider's strength), and ``info["action_clipped"]`` says so;
+    NaN or infinite actions raise :class:`InvalidActionError`.
+
+    Observation space
+    -----------------
+    ``Box(float32)`` of the noisy sensors and the reference:
+
+    ===  ==========  ======================================  =======
+    idx  symbol      meaning                                  unit
+    ===  ==========  ======================================  =======
+    0    delta       steering angle, 10-bit encoder + noise   rad
+    1    delta_rate  steering rate, encoder                   rad/s
+    2    yaw_rate    yaw rate, IMU gyro                       rad/s
+    3    roll_rate   roll rate, IMU gyro                      rad/s
+    4    ay          lateral acceleration, IMU (road plane)   m/s^2
+    5    vx          forward speed, GPS (10 Hz, held)         m/s
+    6    phi_ref     reference roll angle                     rad
+    (7)  roll        roll angle, IMU attitude filter          rad
+    ===  ==========  ======================================  =======
+
+    Index 7 exists only with ``observe_roll=True``: by default the roll angle
+    must be estimated (the point of the observers in ``assist``). The true
+    state is never in the observation; it is in ``info["state"]``.
+
+    Reward
+    ------
+    ``r = exp(-(phi - phi_ref)^2 / (2 s^2)) - w (tau / tau_max)^2`` with
+    ``s`` = 2 deg (``reward_roll_scale_deg``) and ``w`` = 0.01
+    (``reward_effort_weight``): 1 per step for perfect tracking, so staying up
+    pays, and a small effort penalty.
+
+    Starting state
+    --------------
+    Upright steady state plus a roll angle drawn uniformly in
+    ``+-init_roll_deg`` (default 0.5 deg) from the environment's generator;
+    ``reset(options={"x0": array(8)})`` sets it exactly.
+
+    Episode end
+    -----------
+    *Terminated* when the vehicle falls (``|phi| > 45 deg``), when the state
+    is no longer finite, or when the speed leaves the model's valid range;
+    ``info["reason"]`` is ``"fell"``, ``"diverged"`` or ``"speed_out_of_range"``.
+    *Truncated* when the scenario's path ends (``info["reason"] = "scenario_end"``).
+
+    Arguments
+    ---------
+    scenario : str or Scenario
+        A name of :mod:`ptw_env.scenarios` or a scenario object.
+    speed_kmh : float, optional
+        Cruise speed of a named scenario [km/h].
+    sensors : SensorConfig, optional
+        Noise, bias and quantisation (default: the reference logs' sensors).
+    noise_pct : float, optional
+        Shortcut for ``SensorConfig.from_percent(noise_pct)``.
+    effects : Effects, dict or list of "CAUSE:PARAM=VALUE", optional
+        Effects of effects.md in the *true* plant (dynamic and sensor effects).
+    prior_effects, prior_vehicle : optional
+        The model a controller is allowed to know (:meth:`get_prior`), for a
+        prior-vs-true mismatch as in safe-control-gym; default: the nominal
+        reference scooter.
+    disturbances : sequence of Disturbance, optional
+    vehicle : Vehicle, optional
+        The true vehicle (default: the reference scooter).
+    dt : float
+        Control period [s] (default 0.01, the 100 Hz sensor rate).
+    tau_max, normalize_action, observe_roll, init_roll_deg,
+    reward_roll_scale_deg, reward_effort_weight : see above.
+    render_mode : {"rgb_array", "human", None}
+
+    Version history
+    ---------------
+    * v0: first release.
+
+    Examples
+    --------
+    >>> import gymnasium as gym, numpy as np
+    >>> import ptw_env
+    >>> env = gym.make("PTWRoll-v0")
+    >>> obs, info = env.reset(seed=1)
+    >>> obs.shape, obs.dtype
+    ((7,), dtype('float32'))
+    >>> obs, reward, terminated, truncated, info = env.step(np.array([0.0], dtype=np.float32))
+    >>> sorted(k for k in ("state", "t", "phi_ref") if k in info)
+    ['phi_ref', 'state', 't']
+    """
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 25}
+
+    def __init__(
+        self,
+        scenario: str | Scenario = "double_lane_change",
+        speed_kmh: float | None = None,
+        sensors: SensorConfig | None = None,
+        noise_pct: float | None = None,
+        effects: Effects | Mapping | list | str | None = None,
+        prior_effects: Effects | Mapping | list | str | None = None,
+        prior_vehicle: Vehicle | None = None,
+        disturbances: tuple[Disturbance, ...] | list[Disturbance] = (),
+        vehicle: Vehicle | None = None,
+        dt: float = 0.01,
+        tau_max: float = 60.0,
+        normalize_action: bool = False,
+        observe_roll: bool = False,
+        init_roll_deg: float = 0.5,
+        reward_roll_scale_deg: float = 2.0,
+        reward_effort_weight: float = 0.01,
+        scenario_seed: int | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        super().__init__()
+        for name, v in (("dt", dt), ("tau_max", tau_max), ("reward_roll_scale_deg", reward_roll_scale_deg)):
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise EnvConfigError(f"{name} must be a positive number, got {v!r}")
+        for name, v in (("init_roll_deg", init_roll_deg), ("reward_effort_weight", reward_effort_weight)):
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise EnvConfigError(f"{name} must be a number >= 0, got {v!r}")
+        if init_roll_deg >= 45:
+            raise EnvConfigError(f"init_roll_deg must be below the 45 deg fall angle, got {init_roll_deg}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise EnvConfigError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if sensors is not None and noise_pct is not None:
+            raise EnvConfigError("give either sensors= or noise_pct=, not both")
+        if noise_pct is not None:
+            if not isinstance(noise_pct, (int, float)) or not math.isfinite(noise_pct) or noise_pct < 0:
+                raise EnvConfigError(f"noise_pct must be a number >= 0 (percent of each channel's range), got {noise_pct!r}")
+            sensors = SensorConfig.from_percent(float(noise_pct))
+        self.sensor_config = SensorConfig() if sensors is None else sensors
+        if not isinstance(self.sensor_config, SensorConfig):
+            raise EnvConfigError(f"sensors must be a SensorConfig, got {type(sensors).__name__}")
+
+        if isinstance(scenario, str):
+            self.scenario = make_scenario(scenario, speed_kmh=speed_kmh)
+        elif isinstance(scenario, Scenario):
+            if speed_kmh is not None:
+                raise EnvConfigError("speed_kmh applies to a scenario name; set the field on the Scenario object instead")
+            self.scenario = scenario
+        else:
+            raise EnvConfigError(f"scenario must be a name or a Scenario, got {type(scenario).__name__}")
+
+        self.vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
+        self.effects = as_effects(effects)
+        if self.effects.batch_shape:
+            raise EnvConfigError("effects in the environment must be scalars (one vehicle)")
+        self.prior_vehicle = self.vehicle if prior_vehicle is None else prior_vehicle
+        self.prior_effects = as_effects(prior_effects)
+        self.disturbances = tuple(disturbances)
+        for d in self.disturbances:
+            if not isinstance(d, Disturbance):
+                raise EnvConfigError(f"disturbances must be Disturbance objects, got {type(d).__name__}")
+        self.dt = float(dt)
+        self.tau_max = float(tau_max)
+        self.normalize_action = bool(normalize_action)
+        self.observe_roll = bool(observe_roll)
+        self.init_roll = math.radians(init_roll_deg)
+        self._roll_scale = math.radians(reward_roll_scale_deg)
+        self._effort_w = float(reward_effort_weight)
+        self.render_mode = render_mode
+        self.scenario_seed = scenario_seed
+
+        self.plant = compile_plant(self.vehicle, self.effects.dynamic)
+        self._stepper = Stepper(self.plant, self.dt)
+        self._sensors = SensorModel(self.sensor_config, self.effects.sensor, dt=self.dt)
+        self.profile = self.scenario.profile(self.dt, seed=scenario_seed)
+        v0 = float(self.profile.vx[0])
+        if not (self.vehicle.vmin <= v0 <= self.vehicle.vmax):
+            raise EnvConfigError(
+                f"scenario {self.scenario.name!r} starts at {v0:.2f} m/s, outside the model's valid range "
+                f"[{self.vehicle.vmin}, {self.vehicle.vmax}] m/s"
+            )
+        self.max_steps = len(self.profile.t) - 1
+
+        a = 1.0 if self.normalize_action else self.tau_max
+        self.action_space = spaces.Box(-a, a, shape=(1,), dtype=np.float32)
+        nobs = 8 if self.observe_roll else 7
+        hi = np.array([0.6, 10.0, 5.0, 10.0, 50.0, 60.0, FALL_ANGLE, 3.2][:nobs], dtype=np.float32)
+        self.observation_space = spaces.Box(-hi, hi, dtype=np.float32)
+        self._obs_hi = hi
+        self._obs_idx = np.array([0, 1, 2, 3, 4, 6] + ([5] if self.observe_roll else []))  # CHANNELS -> obs
+        assert CHANNELS[5] == "roll" and CHANNELS[6] == "vx"
+
+        self.state = np.zeros(8)
+        self._k = 0
+        self._trace: list[tuple[float, float, float]] = []
+        self._pose = np.zeros(3)  # X, Y, psi
+        self._fig = None
+
+    # ------------------------------------------------------------------
+    def get_prior(self):
+        """The model a controller may use (:class:`~ptw_env.dynamics.Plant` of the prior vehicle
+        and prior effects): the design model, separate from the true plant."""
+        return compile_plant(self.prior_vehicle, self.prior_effects.dynamic)
+
+    def _observe(self) -> np.ndarray:
+        x = self.state
+        y = self._sensors.measure(x, float(self.profile.vx[self._k]), float(self.plant.ay(x)))
+        obs = np.empty(len(self._obs_hi), dtype=np.float32)
+        obs[:6] = y[[0, 1, 2, 3, 4, 6]]
+        obs[6] = self.profile.phi_ref[self._k]
+        if self.observe_roll:
+            obs[7] = y[5]
+        np.clip(obs, -self._obs_hi, self._obs_hi, out=obs)
+        self._last_measurement = y
+        return obs
+
+    def _info(self) -> dict[str, Any]:
+        k = self._k
+        return {
+            "state": self.state.copy(),
+            "t": k * self.dt,
+            "phi_ref": float(self.profile.phi_ref[k]),
+            "vx": float(self.profile.vx[k]),
+            "measurement": self._last_measurement.copy(),
+        }
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        x0 = options.pop("x0", None)
+        if options:
+            raise EnvConfigError(f"unknown reset option(s): {sorted(options)}; known: x0")
+        if x0 is None:
+            self.state = np.zeros(8)
+            self.state[0] = self.np_random.uniform(-self.init_roll, self.init_roll)
+        else:
+            x0 = np.asarray(x0, dtype=float)
+            if x0.shape != (8,) or not np.all(np.isfinite(x0)):
+                raise EnvConfigError(f"reset option x0 must be 8 finite numbers (the state of model.md), got {x0!r}")
+            self.state = x0.copy()
+        self._k = 0
+        self._sensors.reset(self.np_random)
+        self._pose[:] = (self.profile.X[0], self.profile.Y[0], self.profile.psi[0])
+        self._trace = [(self._pose[0], self._pose[1], self.state[0])]
+        obs = self._observe()
+        return obs, self._info()
+
+    def step(self, action):
+        a = np.asarray(action, dtype=float).reshape(-1)
+        if a.shape != (1,):
+            raise InvalidActionError(f"action must hold one number (the steering torque), got shape {np.shape(action)}")
+        u = float(a[0])
+        if not math.isfinite(u):
+            raise InvalidActionError(f"action is not finite: {u!r} (step {self._k}, t = {self._k * self.dt:.2f} s)")
+        lim = float(self.action_space.high[0])
+        clipped = u > lim or u < -lim
+        if clipped:
+            u = lim if u > 0 else -lim
+        tau = u * self.tau_max if self.normalize_action else u
+
+        k = self._k
+        vx = float(self.profile.vx[k])
+        t = k * self.dt
+        d_tau = d_roll = 0.0
+        for d in self.disturbances:
+            if d.channel == "torque":
+                d_tau += d.value(t, self.np_random)
+            else:
+                d_roll += d.value(t, self.np_random)
+        x = self.state
+        psi = self._pose[2]
+        self._stepper.step(x, tau + d_tau, vx, d_roll)
+        # planar pose for the picture (forward Euler is plenty for drawing)
+        self._pose[0] += self.dt * (vx * math.cos(psi) - x[2] * math.sin(psi))
+        self._pose[1] += self.dt * (vx * math.sin(psi) + x[2] * math.cos(psi))
+        self._pose[2] += self.dt * x[3]
+        self._k = k + 1
+
+        terminated = False
+        reason = None
+        phi = x[0]
+        if not np.all(np.isfinite(x)):
+            terminated, reason = True, "diverged"
+            self.state = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
+        elif abs(phi) > FALL_ANGLE:
+            terminated, reason = True, "fell"
+        nxt = min(self._k, self.max_steps)
+        if not terminated and not (self.vehicle.vmin <= self.profile.vx[nxt] <= self.vehicle.vmax):
+            terminated, reason = True, "speed_out_of_range"
+        truncated = (not terminated) and self._k >= self.max_steps
+        if truncated:
+            reason = "scenario_end"
+        self._k = nxt
+
+        err = phi - self.profile.phi_ref[nxt]
+        reward = math.exp(-0.5 * (err / self._roll_scale) ** 2) - self._effort_w * (tau / self.tau_max) ** 2
+        obs = self._observe()
+        info = self._info()
+        info["tau"] = tau
+        info["action_clipped"] = clipped
+        if reason is not None:
+            info["reason"] = reason
+        self._trace.append((self._pose[0], self._pose[1], x[0]))
+        if self.render_mode == "human":
+            self.render()
+        return obs, float(reward), bool(terminated), bool(truncated), info
+
+    # ------------------------------------------------------------------
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        from .render import draw_frame
+
+        frame = draw_frame(self)
+        if self.render_mode == "rgb_array":
+            return frame
+        from .render import show_frame
+
+        self._fig = show_frame(frame, self._fig)
+        return None
+
+    def close(self) -> None:
+        if self._fig is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._fig)
+            self._fig = None
