@@ -38,7 +38,6 @@ from .vehicle import DELTA_DOT, FYF, FYR, G, REFERENCE_SCOOTER, Vehicle
 #: number of features in z
 NZ = 29
 _ZX, _ZVX, _ZIV, _ZS1, _ZS2, _ZTAU, _ZONE, _ZDIST = 0, 8, 16, 24, 25, 26, 27, 28
-# (z[28] is a spare zero column that keeps the layout aligned; unused)
 
 
 @dataclass(frozen=True, eq=False)

@@ -271,9 +271,8 @@ class PTWRollEnv(gym.Env):
         nobs = 8 if self.observe_roll else 7
         hi = np.array([0.6, 10.0, 5.0, 10.0, 50.0, 60.0, FALL_ANGLE, 3.2][:nobs], dtype=np.float32)
         self.observation_space = spaces.Box(-hi, hi, dtype=np.float32)
-        self._obs_hi = hi
-        self._obs_idx = np.array([0, 1, 2, 3, 4, 6] + ([5] if self.observe_roll else []))  # CHANNELS -> obs
-        assert CHANNELS[5] == "roll" and CHANNELS[6] == "vx"
+        self._obs_hi, self._obs_lo = hi, -hi
+        assert CHANNELS == ("delta", "delta_rate", "yaw_rate", "roll_rate", "ay", "roll", "vx")
 
         self.state = np.zeros(8)
         self._k = 0
@@ -291,11 +290,13 @@ class PTWRollEnv(gym.Env):
         x = self.state
         y = self._sensors.measure(x, float(self.profile.vx[self._k]), float(self.plant.ay(x)))
         obs = np.empty(len(self._obs_hi), dtype=np.float32)
-        obs[:6] = y[[0, 1, 2, 3, 4, 6]]
+        obs[:5] = y[:5]  # delta, delta_rate, yaw_rate, roll_rate, ay
+        obs[5] = y[6]  # vx (GPS)
         obs[6] = self.profile.phi_ref[self._k]
         if self.observe_roll:
             obs[7] = y[5]
-        np.clip(obs, -self._obs_hi, self._obs_hi, out=obs)
+        np.minimum(obs, self._obs_hi, out=obs)
+        np.maximum(obs, self._obs_lo, out=obs)
         self._last_measurement = y
         return obs
 
@@ -331,10 +332,13 @@ class PTWRollEnv(gym.Env):
         return obs, self._info()
 
     def step(self, action):
-        a = np.asarray(action, dtype=float).reshape(-1)
-        if a.shape != (1,):
-            raise InvalidActionError(f"action must hold one number (the steering torque), got shape {np.shape(action)}")
-        u = float(a[0])
+        try:
+            (u,) = np.ravel(action)
+            u = float(u)
+        except (ValueError, TypeError):
+            raise InvalidActionError(
+                f"action must hold one number (the steering torque), got {np.shape(action)} {action!r}"
+            ) from None
         if not math.isfinite(u):
             raise InvalidActionError(f"action is not finite: {u!r} (step {self._k}, t = {self._k * self.dt:.2f} s)")
         lim = float(self.action_space.high[0])
@@ -354,7 +358,7 @@ class PTWRollEnv(gym.Env):
                 d_roll += d.value(t, self.np_random)
         x = self.state
         psi = self._pose[2]
-        self._stepper.step(x, tau + d_tau, vx, d_roll)
+        finite = self._stepper.step(x, tau + d_tau, vx, d_roll)
         # planar pose for the picture (forward Euler is plenty for drawing)
         self._pose[0] += self.dt * (vx * math.cos(psi) - x[2] * math.sin(psi))
         self._pose[1] += self.dt * (vx * math.sin(psi) + x[2] * math.cos(psi))
@@ -364,7 +368,7 @@ class PTWRollEnv(gym.Env):
         terminated = False
         reason = None
         phi = x[0]
-        if not np.all(np.isfinite(x)):
+        if not finite:
             terminated, reason = True, "diverged"
             self.state = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
         elif abs(phi) > FALL_ANGLE:

@@ -156,7 +156,8 @@ class Stepper:
         W, s, f, b = plant.flat()
         self._W, self._inv_sigma, self._fmax, self._bank = W[0], s[0], f[0], float(b[0])
 
-    def step(self, x: np.ndarray, tau: float, vx: float, roll_moment: float = 0.0) -> None:
+    def step(self, x: np.ndarray, tau: float, vx: float, roll_moment: float = 0.0) -> bool:
         """Advance ``x`` (shape (8,), float64, modified in place) by ``dt`` with ``tau`` [N m],
-        ``vx`` [m/s] and an external roll moment [N m] (disturbance) held over the period."""
-        kernels.step_one(x, tau, vx, roll_moment, self._W, self._inv_sigma, self._fmax, self._bank, self.dt, self.nsub)
+        ``vx`` [m/s] and an external roll moment [N m] (disturbance) held over the period.
+        Returns False when the new state is not finite (the model diverged)."""
+        return kernels.step_one(x, tau, vx, roll_moment, self._W, self._inv_sigma, self._fmax, self._bank, self.dt, self.nsub)

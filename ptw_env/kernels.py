@@ -86,7 +86,7 @@ def _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, 
 def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
     """Advance one vehicle (``x`` shape (8,), modified in place) by one control
     period ``dt`` with ``tau``, ``vx`` and the roll-moment disturbance ``d`` held;
-    ``nsub`` RK4 substeps."""
+    ``nsub`` RK4 substeps. Returns True when the new state is finite."""
     M = np.empty((8, 8))
     c = np.empty(8)
     g = np.empty((8, 2))
@@ -97,6 +97,10 @@ def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
     tmp = np.empty(8)
     _fold(W, vx, tau, d, M, c, g)
     _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
+    for i in range(8):
+        if not np.isfinite(x[i]):
+            return False
+    return True
 
 
 @njit(cache=True, parallel=True)

@@ -35,7 +35,7 @@ Examples
 >>> rider, step = LQRRider(), Stepper(compile_plant())
 >>> x = np.zeros(8)
 >>> for _ in range(500):                        # 5 s holding 10 deg at 15 m/s
-...     step.step(x, rider.torque(x, 15.0, np.radians(10.0)), 15.0)
+...     ok = step.step(x, rider.torque(x, 15.0, np.radians(10.0)), 15.0)
 >>> round(float(np.degrees(x[0])), 1)
 10.0
 """

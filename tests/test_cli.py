@@ -1,0 +1,95 @@
+"""The ptw-assist command line: simulate and modes (cli.md)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from ptw_env.cli import main
+from ptw_env.logs import read_log
+
+
+def test_simulate_writes_a_log_the_reader_reads_back(tmp_path, capsys):
+    log = tmp_path / "ride.csv"
+    js = tmp_path / "ride.json.out"
+    rc = main(["simulate", "--scenario", "slalom", "--noise", "5", "--seed", "3",
+               "--effect", "road_bank:bank_rad=0.04", "--log", str(log), "--json", str(js)])
+    assert rc == 0
+    out = json.loads(js.read_text())
+    assert {"scenario", "duration_s", "fell"} <= set(out)
+    assert out["scenario"] == "slalom" and out["fell"] is False
+    ride = read_log(log)
+    assert len(ride) == round(out["duration_s"] * 100)
+    assert ride.meta["truth"]["causes"] == [{"cause": "road_bank", "params": {"bank_rad": 0.04}}]
+    # the truth columns are the true state; the sensor columns are noisy versions of it
+    c = ride.columns
+    assert np.corrcoef(c["roll_rate"], c["x_phi_dot"])[0, 1] > 0.9
+    assert np.std(c["roll_rate"] - c["x_phi_dot"]) > 0.01  # 5 % of 1 rad/s noise is there
+    assert "upright" in capsys.readouterr().out
+
+
+def test_simulate_same_seed_same_log(tmp_path):
+    for name in ("a.csv", "b.csv"):
+        assert main(["simulate", "--scenario", "double_lane_change", "--seed", "7", "--log", str(tmp_path / name)]) == 0
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
+
+
+def test_simulate_refuses_to_overwrite(tmp_path, capsys):
+    log = tmp_path / "ride.csv"
+    log.write_text("precious\n")
+    rc = main(["simulate", "--log", str(log)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "exists" in err and "--overwrite" in err
+    assert log.read_text() == "precious\n"
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--effect", "road_bnk:bank_rad=0.1"], ["unknown effect", "road_bnk"]),
+        (["--effect", "road_bank:bank_rad=abc"], ["not a number", "bank_rad"]),
+        (["--effect", "payload:mass_kg=5000"], ["mass_kg", "range"]),
+        (["--speed", "3"], ["speed"]),
+    ],
+)
+def test_simulate_bad_input_one_clear_line(tmp_path, capsys, args, words):
+    rc = main(["simulate", "--log", str(tmp_path / "x.csv"), *args])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2
+    assert len(err.splitlines()) == 1 and err.startswith("ptw-assist simulate: error:")
+    for w in words:
+        assert w in err
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_modes_json_matches_cli_spec(tmp_path, capsys):
+    js = tmp_path / "modes.json"
+    png = tmp_path / "modes.png"
+    assert main(["modes", "--speeds", "5,10,20,30", "--json", str(js), "--plot", str(png)]) == 0
+    d = json.loads(js.read_text())
+    assert d["speeds"] == [5.0, 10.0, 20.0, 30.0]
+    assert len(d["eigenvalues"]) == 4 and all(len(e) == 8 for e in d["eigenvalues"])
+    assert all(len(l) == 8 for l in d["labels"])
+    ev10 = np.array(d["eigenvalues"][1])
+    lab10 = d["labels"][1]
+    weave = [complex(*e) for e, l in zip(ev10, lab10) if l == "weave"]
+    assert any(abs(w - (0.32 + 5.61j)) < 0.01 for w in weave)
+    assert png.stat().st_size > 10_000
+    assert "weave" in capsys.readouterr().out
+
+
+def test_modes_rejects_bad_speeds(capsys):
+    with pytest.raises(SystemExit):
+        main(["modes", "--speeds", "5,abc"])
+    assert main(["modes", "--speeds", "100"]) == 2
+    assert "valid range" in capsys.readouterr().err
+
+
+def test_console_script_help_has_example():
+    out = subprocess.run([sys.executable, "-m", "ptw_env.cli", "simulate", "--help"],
+                         capture_output=True, text=True, check=True).stdout
+    assert "example:" in out and "ptw-assist simulate" in out

@@ -1,0 +1,30 @@
+"""Repository contracts: CI runs the README's test command; the README's main command works."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _bash_blocks(text: str) -> list[str]:
+    return [b.strip() for b in re.findall(r"```bash\n(.*?)```", text, flags=re.S)]
+
+
+def test_ci_runs_the_readme_test_command():
+    blocks = _bash_blocks((ROOT / "README.md").read_text())
+    test_cmds = [b for b in blocks if "pytest" in b]
+    assert len(test_cmds) == 1, test_cmds
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert test_cmds[0] in ci.splitlines()
+
+
+def test_readme_main_command_is_a_known_subcommand():
+    from ptw_env.cli import build_parser
+
+    blocks = _bash_blocks((ROOT / "README.md").read_text())
+    main_cmd = blocks[0]
+    assert main_cmd.startswith("pip install -e . && ptw-assist ")
+    argv = main_cmd.split("ptw-assist ", 1)[1].split()
+    build_parser().parse_args(argv)  # parses: the subcommand and its options exist
