@@ -27,7 +27,7 @@ from ptw_env.vehicle import STATE_NAMES
 
 DT = 0.01
 T = 2000  # 20 s at 100 Hz
-DATA = Path("/work/shared/data")
+from conftest import DATA  # noqa: E402  (shared/data beside the repository)
 
 
 def _smooth_torque(seed: int, amplitude: float) -> np.ndarray:

@@ -20,7 +20,7 @@ from ptw_env.logs import (
     write_log,
 )
 
-DATA = Path("/work/shared/data")
+from conftest import DATA  # noqa: E402  (shared/data beside the repository)
 HEADER = "t,tau,vx,delta,delta_rate,yaw_rate,roll_rate,ay"
 
 

@@ -23,7 +23,7 @@ from ptw_env.sensors import (
 )
 from ptw_env.vehicle import G
 
-DATA = Path("/work/shared/data")
+from conftest import DATA  # noqa: E402  (shared/data beside the repository)
 Q = 2 * math.pi / 1024
 
 
