@@ -1,0 +1,295 @@
+"""Closed-loop roll-tracking evaluation through ``env.step``, the way a user runs a controller.
+
+Controllers (``--controller`` of ``ptw-assist evaluate``):
+
+* ``ts``: the Takagi-Sugeno observer-based controller (:mod:`assist.ts_controller`),
+  from the noisy yaw rate, roll rate, steering angle and rate only;
+* ``lqg``: gain-scheduled Kalman filter + LQR (:mod:`assist.lqg`), same measurements;
+* ``lqr``: gain-scheduled LQR with the *true* full state from ``info["state"]``:
+  the bound no output-feedback design can beat (same gains as the LQG);
+* ``rl``: a stable-baselines3 policy, when one is available.
+
+Every controller is designed on the environment's *prior* model
+(``env.get_prior()``), never on the true plant, and sees the observation
+vector of :class:`ptw_env.env.PTWRollEnv`.
+
+Metrics (per episode): roll-tracking RMSE and maximum absolute error [deg]
+of the true roll against the reference, torque RMS [N m], whether the scooter
+fell, and for observer-based controllers the RMSE of each estimated state
+(in its unit) over the episode.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Protocol
+
+import gymnasium as gym
+import numpy as np
+
+from ptw_env.env import PTWRollEnv
+from ptw_env.vehicle import STATE_NAMES
+
+CONTROLLERS = ("ts", "lqr", "lqg", "rl")
+
+
+class EvaluationError(ValueError):
+    """A bad evaluation request (unknown controller, bad design range)."""
+
+
+class Controller(Protocol):
+    name: str
+
+    def reset(self) -> None: ...
+
+    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float: ...
+
+    @property
+    def x_hat(self) -> np.ndarray | None: ...
+
+
+def _measurements(obs: np.ndarray) -> np.ndarray:
+    """[yaw_rate, roll_rate, delta, delta_rate] from the observation [delta, delta_rate, yaw_rate, roll_rate, ...]."""
+    return np.array([obs[2], obs[3], obs[0], obs[1]], dtype=float)
+
+
+class TSAdapter:
+    """The TS observer-based controller on the environment's observation."""
+
+    name = "ts"
+
+    def __init__(self, env: PTWRollEnv, vmin: float | None = None, vmax: float | None = None) -> None:
+        from .ts_controller import TSObserverController
+        from .ts_design import design
+
+        prior = env.get_prior()
+        self.design = design(prior.vehicle, vmin=vmin, vmax=vmax)
+        self.ctrl = TSObserverController(self.design)
+
+    def reset(self) -> None:
+        self.ctrl.reset()
+
+    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
+        return self.ctrl.update(_measurements(obs), float(obs[5]), float(obs[6]))
+
+    @property
+    def x_hat(self) -> np.ndarray:
+        return self.ctrl.x_hat
+
+
+class LQGAdapter:
+    name = "lqg"
+
+    def __init__(self, env: PTWRollEnv) -> None:
+        from .lqg import LQGController
+
+        self.ctrl = LQGController(env.get_prior().vehicle, env.sensor_config, env.dt, env.tau_max)
+
+    def reset(self) -> None:
+        self.ctrl.reset()
+
+    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
+        return self.ctrl.update(_measurements(obs), float(obs[5]), float(obs[6]))
+
+    @property
+    def x_hat(self) -> np.ndarray:
+        return self.ctrl.x_hat
+
+
+class FullStateLQR:
+    """Gain-scheduled LQR on the true state (``info["state"]``) and true speed: the bound."""
+
+    name = "lqr"
+
+    def __init__(self, env: PTWRollEnv) -> None:
+        from ptw_env.rider import LQRRider
+
+        self.rider = LQRRider(vehicle=env.get_prior().vehicle, torque_noise_nm=0.0, tau_max=env.tau_max, dt=env.dt)
+
+    def reset(self) -> None:
+        self.rider.reset(None)
+
+    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
+        return self.rider.torque(info["state"], info["vx"], info["phi_ref"])
+
+    @property
+    def x_hat(self) -> None:
+        return None
+
+
+def make_controller(name: str, env: PTWRollEnv, **options: Any) -> Controller:
+    """Build controller ``name`` for ``env`` (designed on ``env.get_prior()``)."""
+    if name == "ts":
+        return TSAdapter(env, **options)
+    if name == "lqg":
+        return LQGAdapter(env, **options)
+    if name == "lqr":
+        return FullStateLQR(env, **options)
+    if name == "rl":
+        from .rl import RLAdapter  # noqa: F401  (optional: stable-baselines3)
+
+        return RLAdapter(env, **options)
+    raise EvaluationError(f"unknown controller {name!r}; known: {', '.join(CONTROLLERS)}")
+
+
+@dataclass
+class Episode:
+    """One closed-loop episode with its traces (sampled every dt)."""
+
+    controller: str
+    scenario: str
+    speed_kmh: float | None
+    noise_pct: float | None
+    seed: int
+    t: np.ndarray
+    phi_ref: np.ndarray
+    x: np.ndarray  #: true states (K, 8)
+    x_hat: np.ndarray | None  #: estimates (K, 8) or None
+    tau: np.ndarray
+    vx: np.ndarray
+    fell: bool
+    reason: str
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def metrics(self) -> dict[str, Any]:
+        """The figures of ``ptw-assist evaluate --json`` (cli.md)."""
+        err = self.x[:, 0] - self.phi_ref
+        out: dict[str, Any] = {
+            "controller": self.controller,
+            "scenario": self.scenario,
+            "speed_kmh": self.speed_kmh,
+            "noise_pct": self.noise_pct,
+            "seed": self.seed,
+            "duration_s": float(self.t[-1]) if len(self.t) else 0.0,
+            "roll_rmse_deg": float(np.degrees(np.sqrt(np.mean(err**2)))),
+            "roll_max_deg": float(np.degrees(np.max(np.abs(err)))),
+            "torque_rms_nm": float(np.sqrt(np.mean(self.tau**2))),
+            "fell": bool(self.fell),
+            "end_reason": self.reason,
+            "estimation_rmse": None,
+        }
+        if self.x_hat is not None:
+            e = self.x_hat - self.x
+            out["estimation_rmse"] = {n: float(np.sqrt(np.mean(e[:, i] ** 2))) for i, n in enumerate(STATE_NAMES)}
+            out["estimation_max"] = {n: float(np.max(np.abs(e[:, i]))) for i, n in enumerate(STATE_NAMES)}
+        return out
+
+
+def run_episode(
+    controller: str | Callable[[PTWRollEnv], Controller] = "ts",
+    scenario: str = "double_lane_change",
+    speed_kmh: float | None = None,
+    noise_pct: float | None = 5.0,
+    seed: int = 0,
+    effects=None,
+    controller_options: dict[str, Any] | None = None,
+    **env_kwargs: Any,
+) -> Episode:
+    """Run one closed-loop episode through ``env.step`` and record everything.
+
+    The controller acts on the observation returned by the previous
+    ``reset``/``step`` (the sample at ``t_k``) and its torque is held over
+    ``[t_k, t_{k+1})`` by the environment.
+    """
+    env = PTWRollEnv(scenario=scenario, speed_kmh=speed_kmh, noise_pct=noise_pct, effects=effects, **env_kwargs)
+    ctrl = make_controller(controller, env, **(controller_options or {})) if isinstance(controller, str) \
+        else controller(env)
+    obs, info = env.reset(seed=seed)
+    ctrl.reset()
+    ts, refs, xs, xh, taus, vxs = [], [], [], [], [], []
+    reason = "scenario_end"
+    while True:
+        tau = float(ctrl.act(obs, info))
+        if not math.isfinite(tau):
+            raise EvaluationError(f"controller {ctrl.name} returned a non-finite torque at t = {info['t']:.2f} s")
+        ts.append(info["t"])
+        refs.append(info["phi_ref"])
+        xs.append(info["state"])
+        vxs.append(info["vx"])
+        taus.append(tau)
+        est = ctrl.x_hat
+        if est is not None:
+            xh.append(np.array(est, dtype=float))
+        obs, _, term, trunc, info = env.step(np.array([tau], dtype=np.float32))
+        if term or trunc:
+            reason = info.get("reason", "scenario_end")
+            break
+    env.close()
+    return Episode(
+        controller=ctrl.name, scenario=env.scenario.name, speed_kmh=speed_kmh, noise_pct=noise_pct, seed=seed,
+        t=np.array(ts), phi_ref=np.array(refs), x=np.array(xs), x_hat=np.array(xh) if xh else None,
+        tau=np.array(taus), vx=np.array(vxs), fell=reason == "fell", reason=reason,
+    )
+
+
+def plot_episode(ep: Episode, path=None, compare: list[Episode] | None = None):
+    """Figure like the paper's: roll vs reference vs estimate, steering torque, states true vs estimated."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axs = plt.subplots(3, 2, figsize=(12, 8.5), constrained_layout=True)
+    ax = axs[0, 0]
+    ax.plot(ep.t, np.degrees(ep.phi_ref), "k--", lw=1, label="reference")
+    ax.plot(ep.t, np.degrees(ep.x[:, 0]), color="C3", label=f"true roll ({ep.controller})")
+    if ep.x_hat is not None:
+        ax.plot(ep.t, np.degrees(ep.x_hat[:, 0]), color="C0", lw=0.9, label="estimated roll")
+    colors = ("C4", "C1", "C2", "C5")
+    for other, col in zip(compare or [], colors):
+        ax.plot(other.t, np.degrees(other.x[:, 0]), lw=0.9, color=col, label=f"true roll ({other.controller})")
+    ax.set(ylabel="roll [deg]", title=f"{ep.scenario}, noise {ep.noise_pct} %, seed {ep.seed}")
+    ax.legend(fontsize=8)
+    ax = axs[0, 1]
+    ax.plot(ep.t, ep.tau, color="C3", lw=0.9, label=ep.controller)
+    for other, col in zip(compare or [], colors):
+        ax.plot(other.t, other.tau, lw=0.7, color=col, label=other.controller)
+    ax.set(ylabel="steering torque [N m]", title="control input")
+    ax.legend(fontsize=8)
+    panels = [(2, "vy", "m/s"), (3, "r", "rad/s"), (1, "delta", "rad"), (6, "Fyf", "N")]
+    for ax, (i, nm, unit) in zip(axs[1:].ravel(), panels):
+        ax.plot(ep.t, ep.x[:, i], color="C3", label="true")
+        if ep.x_hat is not None:
+            ax.plot(ep.t, ep.x_hat[:, i], color="C0", lw=0.9, label="estimated")
+        ax.set(ylabel=f"{nm} [{unit}]", xlabel="t [s]")
+        ax.legend(fontsize=8)
+    if path is not None:
+        fig.savefig(path, dpi=110)
+    return fig
+
+
+def metrics_table(rows: list[dict[str, Any]]) -> str:
+    """A Markdown table of episode metrics (one row per episode or per aggregate)."""
+    head = "| controller | scenario | speed km/h | noise % | seeds | roll RMSE deg | roll max deg | torque RMS N m | falls | phi est RMSE deg | vy est RMSE m/s |"
+    sep = "|" + "---|" * 11
+    lines = [head, sep]
+    for r in rows:
+        est = r.get("estimation_rmse") or {}
+        phi = f"{math.degrees(est['phi']):.3f}" if "phi" in est else "-"
+        vy = f"{est['vy']:.3f}" if "vy" in est else "-"
+        lines.append(
+            f"| {r['controller']} | {r['scenario']} | {r.get('speed_kmh') or '-'} | {r.get('noise_pct')} | "
+            f"{r.get('seeds', 1)} | {r['roll_rmse_deg']:.3f} | {r['roll_max_deg']:.2f} | {r['torque_rms_nm']:.2f} | "
+            f"{r.get('falls', int(r['fell']))} | {phi} | {vy} |"
+        )
+    return "\n".join(lines)
+
+
+def aggregate(episodes: list[Episode]) -> dict[str, Any]:
+    """Mean metrics over seeds of one configuration (max over seeds for the maxima; falls counted)."""
+    ms = [e.metrics() for e in episodes]
+    out = dict(ms[0])
+    out["seeds"] = len(ms)
+    out["roll_rmse_deg"] = float(np.mean([m["roll_rmse_deg"] for m in ms]))
+    out["roll_max_deg"] = float(np.max([m["roll_max_deg"] for m in ms]))
+    out["torque_rms_nm"] = float(np.mean([m["torque_rms_nm"] for m in ms]))
+    out["falls"] = int(sum(m["fell"] for m in ms))
+    out["fell"] = out["falls"] > 0
+    if ms[0]["estimation_rmse"] is not None:
+        out["estimation_rmse"] = {k: float(np.mean([m["estimation_rmse"][k] for m in ms])) for k in STATE_NAMES}
+    return out
+
+
+__all__ = ["CONTROLLERS", "Episode", "EvaluationError", "aggregate", "make_controller", "metrics_table",
+           "plot_episode", "run_episode", "gym"]

@@ -1,0 +1,587 @@
+"""Runtime of the Takagi-Sugeno observer-based roll-tracking controller (100 Hz).
+
+Continuous-time law (Dabladji et al. [1]_, eqs. 8 and 21, on the augmented
+model of :mod:`assist.ts_model`):
+
+.. math::
+
+    \\dot{\\hat x} &= \\sum_i \\hat\\mu_i \\bigl(A_i \\hat x + L_i (y - C \\hat x)\\bigr) + B\\tau \\\\
+    \\dot e_\\phi &= \\hat\\phi - \\phi_r, \\qquad
+    \\dot s_2 = -\\omega_2 s_2 + k_2 (\\hat\\phi - \\phi_r) \\\\
+    \\tau &= -\\sum_i \\hat\\mu_i K_i\\, [\\hat x;\\, e_\\phi;\\, s_2]
+
+with ``mu_hat = mu(z1 = measured vx clipped to [vmin, vmax], z2 = sin(phi_hat)/phi_hat)``.
+The augmented states ``e_phi`` [rad s] and ``s2`` [rad] are driven by the
+*estimated* roll (the roll angle is not measured). In [1]_ the reference
+enters only through them; the state feedback then pulls ``phi`` towards 0
+and the roll lags a lane-change reference by degrees. The runtime adds the
+reference feedforward implied by the design model (servo form): the torque
+regulates ``z - [x_ref; 0; 0]`` around the TS model's low-frequency inverse
+``(x_ref, tau_ref)`` of :func:`reference_series`. The feedforward does not
+enter the loop dynamics, so the certificates and ISS bounds are unchanged
+(the tracking error of the inverse acts as a bounded input).
+
+Discretisation (what :meth:`TSObserverController.update` does)
+--------------------------------------------------------------
+Per vertex the 10-state system ``z' = F_i z + G_i v`` (``z = [x_hat, e_phi, s2]``,
+``v = [tau, y, phi_r]``) is discretised *exactly* over one period ``dt`` with
+the torque held (zero-order hold: it is, the environment holds it) and the
+measurements and the reference interpolated linearly between samples
+(first-order hold)::
+
+    z_k = Phi_i z_{k-1} + Gamma0_i v_{k-1} + Gamma1_i (v_k - v_{k-1})
+
+``[Phi, Gamma0, Gamma1]`` are blocks of ``expm([[F, G, 0], [0, 0, I], [0, 0, 0]] dt)``
+(the last block carries ``v_k - v_{k-1}``). The vertex updates are blended
+with the memberships at the start of the period. ``update(y_k, vx_k, phi_r_k)``
+thus integrates the observer over ``[t_{k-1}, t_k]`` using ``y_k`` (no
+one-sample measurement delay) and returns ``tau_k`` for ``[t_k, t_{k+1})``.
+Each vertex system is stable in continuous time with its poles inside the
+design disk ``|lambda| < R < pi/dt`` (:mod:`assist.ts_design`), so each
+``Phi_i`` has spectral radius ``exp(-decay dt) < 1`` and no pole is aliased.
+
+References
+----------
+.. [1] H. Dabladji, D. Ichalal, H. Arioui, S. Mammar, "Observer based
+   controller for single track vehicles", 52nd IEEE CDC, 2013.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.linalg as sla
+from numba import njit
+
+from .ts_model import PHI, AugmentedModel
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .ts_design import TSDesign
+
+#: number of runtime states z = [x_hat (8), e_phi, s2]
+NZ = 10
+#: inputs v = [tau, y (4), phi_r]
+NV = 6
+#: Indices in the :class:`ptw_env.env.PTWRollEnv` observation of yaw_rate, roll_rate, delta,
+#: delta_rate, vx, phi_ref (see :meth:`TSObserverController.act`).
+ENV_OBS_INDEX = (2, 3, 0, 1, 5, 6)
+
+
+class MeasurementError(ValueError):
+    """A measurement, speed or reference passed to :meth:`TSObserverController.update` that is unusable."""
+
+
+@dataclass(frozen=True, eq=False)
+class DiscreteTS:
+    """Exact FOH/ZOH discretisation of the four vertex observer-controllers (see module docstring).
+
+    Attributes
+    ----------
+    dt : float
+        Sampling period [s].
+    Phi : ndarray, shape (4, 10, 10)
+    Gamma0 : ndarray, shape (4, 10, 6)
+        Effect of ``v_{k-1} = [tau, y, phi_r]``.
+    Gamma1 : ndarray, shape (4, 10, 6)
+        Effect of ``v_k - v_{k-1}`` (its torque column is zero: the torque is held).
+    K : ndarray, shape (4, 10)
+        Vertex feedback gains ``tau = -K_i z`` [N m per unit state].
+    stacked : ndarray, shape (40, 22)
+        ``[Phi | Gamma0 | Gamma1]`` of the vertices stacked for one matrix-vector product.
+    """
+
+    dt: float
+    Phi: np.ndarray
+    Gamma0: np.ndarray
+    Gamma1: np.ndarray
+    K: np.ndarray
+    stacked: np.ndarray
+
+
+def vertex_systems(aug: AugmentedModel, L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous vertex systems ``(F, G)`` of the runtime, shapes (4, 10, 10), (4, 10, 6).
+
+    ``F_i = [[A_i - L_i C, 0], [Bc e_phi^T, Ac]]``, ``G_i = [[B, L_i, 0], [0, 0, -Bc]]``
+    (module docstring; ``L`` has shape (4, 8, 4)).
+    """
+    ts = aug.ts
+    F = np.zeros((4, NZ, NZ))
+    G = np.zeros((4, NZ, NV))
+    for i in range(4):
+        F[i, :8, :8] = ts.A[i] - L[i] @ ts.C
+        F[i, 8:, PHI] = aug.Bc[:, 0]
+        F[i, 8:, 8:] = aug.Ac
+        G[i, :8, 0] = ts.B[:, 0]
+        G[i, :8, 1:5] = L[i]
+        G[i, 8:, 5] = -aug.Bc[:, 0]
+    return F, G
+
+
+def foh_discretise(F: np.ndarray, G: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(Phi, Gamma0, Gamma1)`` of ``z' = F z + G v`` with ``v`` linear over ``[0, dt]``.
+
+    ``z(dt) = Phi z(0) + Gamma0 v(0) + Gamma1 (v(dt) - v(0))``, from
+    ``expm([[F, G, 0], [0, 0, I/dt], [0, 0, 0]] dt)`` (exact for linear ``v``).
+    """
+    n, m = G.shape
+    M = np.zeros((n + 2 * m, n + 2 * m))
+    M[:n, :n] = F
+    M[:n, n : n + m] = G
+    M[n : n + m, n + m :] = np.eye(m) / dt
+    E = sla.expm(M * dt)
+    return E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
+
+
+def discretise(aug: AugmentedModel, L: np.ndarray, K: np.ndarray, dt: float) -> DiscreteTS:
+    """Discretise the vertex observer-controllers for a ``dt``-periodic implementation.
+
+    Parameters
+    ----------
+    aug : AugmentedModel
+    L : ndarray, shape (4, 8, 4)
+        Observer gains (physical units).
+    K : ndarray, shape (4, 10)
+        Controller gains (physical units).
+    dt : float
+        Sampling period [s].
+    """
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    F, G = vertex_systems(aug, L)
+    Phi = np.empty((4, NZ, NZ))
+    G0 = np.empty((4, NZ, NV))
+    G1 = np.empty((4, NZ, NV))
+    for i in range(4):
+        Phi[i], G0[i], G1[i] = foh_discretise(F[i], G[i], dt)
+    G1[:, :, 0] = 0.0  # the torque is held: v_k - v_{k-1} has no torque part inside a period
+    stacked = np.concatenate([Phi, G0, G1], axis=2).reshape(4 * NZ, NZ + 2 * NV)
+    K = np.asarray(K, dtype=float).reshape(4, NZ)
+    for a in (Phi, G0, G1, K, stacked):
+        a.setflags(write=False)
+    return DiscreteTS(dt=float(dt), Phi=Phi, Gamma0=G0, Gamma1=G1, K=K, stacked=np.ascontiguousarray(stacked))
+
+
+def sampled_closed_loop(aug: AugmentedModel, disc: DiscreteTS, mu_plant: np.ndarray, mu_ctrl: np.ndarray) -> np.ndarray:
+    """Transition matrix of the sampled loop: frozen TS plant + discretised observer-controller.
+
+    The plant ``x' = A(mu_plant) x + B tau`` is discretised exactly with the
+    torque held (``Ad, Bd``); the runtime uses the blend ``mu_ctrl`` of the
+    discrete vertex matrices. With ``s_k = [x_k, z_k]``, ``tau_k = -K z_k``,
+    ``y = C x`` and ``phi_r = 0``::
+
+        x_k = Ad x_{k-1} + Bd tau_{k-1}
+        z_k = Phi z_{k-1} + Gamma0 [tau_{k-1}, C x_{k-1}, 0] + Gamma1 [0, C (x_k - x_{k-1}), 0]
+
+    Returns the (18, 18) matrix ``s_k = T s_{k-1}``; the loop is stable for these
+    frozen premises iff its spectral radius is below 1.
+    """
+    ts = aug.ts
+    mu_p = np.asarray(mu_plant, dtype=float)
+    mu_c = np.asarray(mu_ctrl, dtype=float)
+    A = np.einsum("i,ijk->jk", mu_p, ts.A)
+    n = 8
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = A
+    M[:n, n:] = ts.B
+    Ed = sla.expm(M * disc.dt)
+    Ad, Bd = Ed[:n, :n], Ed[:n, n:]
+    Phi = np.einsum("i,ijk->jk", mu_c, disc.Phi)
+    G0 = np.einsum("i,ijk->jk", mu_c, disc.Gamma0)
+    G1 = np.einsum("i,ijk->jk", mu_c, disc.Gamma1)
+    K = (mu_c @ disc.K)[None, :]
+    C = ts.C
+    G0u, G0y = G0[:, :1], G0[:, 1:5]
+    G1y = G1[:, 1:5]
+    T = np.zeros((n + NZ, n + NZ))
+    T[:n, :n] = Ad
+    T[:n, n:] = -Bd @ K
+    T[n:, :n] = G0y @ C + G1y @ C @ (Ad - np.eye(n))
+    T[n:, n:] = Phi - G0u @ K - G1y @ C @ Bd @ K
+    return T
+
+
+def reference_series(ts, vx: float, z2: float, order: int = 2) -> np.ndarray:
+    """Low-frequency model inverse for a roll reference: rows ``[x_j (8), u_j]``, ``j = 0..order``.
+
+    The state and torque that make the TS model (premise frozen at
+    ``z = (vx, z2)``) follow ``phi(t) = phi_r(t)`` are expanded in the
+    derivatives of the reference,
+
+    .. math::
+
+        x_{ref} = \\sum_j \\phi_r^{(j)} \\xi_j, \\qquad
+        \\tau_{ref} = \\sum_j \\phi_r^{(j)} \\nu_j, \\qquad
+        A(z) \\xi_0 + B \\nu_0 = 0,\\;\\; A(z) \\xi_j + B \\nu_j = \\xi_{j-1},\\;\\;
+        e_\\phi^T \\xi_j = \\delta_{j0},
+
+    so that ``x_ref' - A x_ref - B tau_ref = phi_r^(order+1) xi_order``
+    (the Taylor series of the inverse of ``tau -> phi`` about ``s = 0``,
+    valid for references slower than its nearest zero). Row 0 is the steady
+    turn: with ``z2 = sin(phi_r)/phi_r`` it is the exact equilibrium of the
+    nonlinear plant at roll ``phi_r`` up to ``sin(delta) ~ delta``.
+    """
+    mu = _box_memberships(ts, vx, z2)
+    M = np.zeros((9, 9))
+    M[:8, :8] = np.einsum("i,ijk->jk", mu, ts.A)
+    M[:8, 8] = ts.B[:, 0]
+    M[8, PHI] = 1.0
+    out = np.zeros((order + 1, 9))
+    rhs = np.zeros(9)
+    rhs[8] = 1.0
+    for j in range(order + 1):
+        out[j] = np.linalg.solve(M, rhs)
+        rhs = np.zeros(9)
+        rhs[:8] = out[j, :8]
+    return out
+
+
+def _box_memberships(ts, vx: float, z2: float) -> np.ndarray:
+    w1 = (vx - ts.vmin) / (ts.vmax - ts.vmin)
+    w2 = (z2 - ts.z2min) / (1.0 - ts.z2min)
+    return np.array([(1 - w1) * (1 - w2), (1 - w1) * w2, w1 * (1 - w2), w1 * w2])
+
+
+@dataclass(frozen=True, eq=False)
+class FeedforwardTable:
+    """:func:`reference_series` (order 2) tabulated on a ``vx x z2`` grid, bilinearly interpolated at run time.
+
+    ``table[a, b] = reference_series(ts, speeds[a], z2s[b], 2)``, shape (nv, nz2, 3, 9).
+    """
+
+    speeds: np.ndarray
+    z2s: np.ndarray
+    table: np.ndarray
+
+    @classmethod
+    def build(cls, ts, dv: float = 0.25, nz2: int = 5) -> "FeedforwardTable":
+        n = max(2, int(math.ceil((ts.vmax - ts.vmin) / dv)) + 1)
+        speeds = np.linspace(ts.vmin, ts.vmax, n)
+        z2s = np.linspace(ts.z2min, 1.0, nz2)
+        tab = np.array([[reference_series(ts, v, z2, 2) for z2 in z2s] for v in speeds])
+        return cls(speeds=speeds, z2s=z2s, table=tab)
+
+
+@njit(cache=True)
+def _premise_mu(vx, phi, vmin, vmax, z2min, mu):
+    """Memberships ``mu`` (4,) at measured speed ``vx`` [m/s] and roll ``phi`` [rad] (module ts_model)."""
+    z1 = min(max(vx, vmin), vmax)
+    w1 = (z1 - vmin) / (vmax - vmin)
+    z2 = math.sin(phi) / phi if abs(phi) > 1e-6 else 1.0 - phi * phi / 6.0
+    z2 = min(max(z2, z2min), 1.0)
+    w2 = (z2 - z2min) / (1.0 - z2min)
+    mu[0] = (1.0 - w1) * (1.0 - w2)
+    mu[1] = (1.0 - w1) * w2
+    mu[2] = w1 * (1.0 - w2)
+    mu[3] = w1 * w2
+
+
+@njit(cache=True)
+def _update_kernel(z, w, mu, M, K, y, vx, r, rd, rdd, started, order, box, ff, ffgrid):
+    """One sample of :class:`TSObserverController` (see there); returns the torque, or NaN for a non-finite ``y``.
+
+    ``box = [vmin, vmax, z2min]``, ``ffgrid = [v0, dv, z0, dz]`` of the feedforward table ``ff``.
+    """
+    for j in range(4):
+        if not math.isfinite(y[j]):
+            return math.nan
+    if started:
+        for j in range(4):
+            w[17 + j] = y[j] - w[11 + j]
+        w[21] = r - w[15]
+        for a in range(NZ):
+            acc = 0.0
+            for i in range(4):
+                row = i * NZ + a
+                s = 0.0
+                for b in range(NZ + 2 * NV):
+                    s += M[row, b] * w[b]
+                acc += mu[i] * s
+            z[a] = acc
+    _premise_mu(vx, z[0], box[0], box[1], box[2], mu)
+    tau = 0.0
+    kb = np.empty(NZ)
+    for a in range(NZ):
+        kb[a] = mu[0] * K[0, a] + mu[1] * K[1, a] + mu[2] * K[2, a] + mu[3] * K[3, a]
+        tau -= kb[a] * z[a]
+    if order >= 0 and (r != 0.0 or rd != 0.0 or rdd != 0.0):
+        nv, nz2 = ff.shape[0], ff.shape[1]
+        fa = (min(max(vx, box[0]), box[1]) - ffgrid[0]) / ffgrid[1]
+        ia = min(int(fa), nv - 2)
+        fa -= ia
+        z2 = math.sin(r) / r if abs(r) > 1e-6 else 1.0
+        fb = (min(max(z2, box[2]), 1.0) - ffgrid[2]) / ffgrid[3]
+        ib = min(int(fb), nz2 - 2)
+        fb -= ib
+        c00, c01, c10, c11 = (1 - fa) * (1 - fb), (1 - fa) * fb, fa * (1 - fb), fa * fb
+        coef = (r, rd, rdd)
+        for j in range(order + 1):
+            cj = coef[j]
+            if cj == 0.0:
+                continue
+            for a in range(9):
+                f = (c00 * ff[ia, ib, j, a] + c01 * ff[ia, ib + 1, j, a]
+                     + c10 * ff[ia + 1, ib, j, a] + c11 * ff[ia + 1, ib + 1, j, a])
+                tau += cj * f * (1.0 if a == 8 else kb[a])
+    for a in range(NZ):
+        w[a] = z[a]
+    w[10] = tau
+    for j in range(4):
+        w[11 + j] = y[j]
+    w[15] = r
+    return tau
+
+
+class TSObserverController:
+    """The TS observer and controller, run once per sample (100 Hz by default).
+
+    Torque law (module docstring), with the reference feedforward of
+    :func:`reference_series`:
+
+    .. math::
+
+        \\tau_k = \\tau_{ref} - \\bar K (z_k - [x_{ref}; 0; 0]), \\quad
+        \\bar K = \\sum_i \\hat\\mu_i K_i, \\quad
+        (x_{ref}, \\tau_{ref}) = \\sum_{j \\le n} \\phi_r^{(j)} (\\xi_j, \\nu_j)
+
+    ``n = feedforward`` (the derivatives of ``phi_r`` by backward differences
+    of its samples). With ``feedforward=None`` the law is the paper's pure
+    ``tau = -sum_i mu_hat_i K_i z`` (the reference then acts through
+    ``e_phi`` and ``s2`` only, and the state feedback pulls ``phi`` towards 0:
+    the roll lags the reference by several degrees on a lane change).
+
+    Parameters
+    ----------
+    design : TSDesign
+        A certified design (:func:`assist.ts_design.design`); its discretised
+        vertex matrices (:attr:`TSDesign.runtime`) are used as they are.
+    feedforward : {2, 1, 0, None}
+        Order of the reference feedforward (None: off).
+
+    Attributes
+    ----------
+    x_hat : ndarray, shape (8,)
+        Estimated plant state ``[phi, delta, vy, r, phi_dot, delta_dot, Fyf, Fyr]`` (read-only copy).
+    augmented : ndarray, shape (2,)
+        Controller states ``[e_phi, s2]`` (rad s, rad), driven by ``phi_hat - phi_r``.
+    z : ndarray, shape (10,)
+        ``[x_hat, e_phi, s2]`` (the live state; do not modify).
+    mu : ndarray, shape (4,)
+        Memberships used for the last torque.
+    tau : float
+        Last torque returned [N m].
+
+    Examples
+    --------
+    >>> from assist.ts_design import design
+    >>> ctrl = TSObserverController(design())
+    >>> ctrl.update([0.0, 0.0, 0.0, 0.0], vx=15.0, phi_ref=0.0)
+    0.0
+    """
+
+    def __init__(self, design: "TSDesign", *, feedforward: int | None = 2) -> None:
+        disc = getattr(design, "runtime", None)
+        if not isinstance(disc, DiscreteTS):
+            raise TypeError(f"design must be a TSDesign from assist.ts_design.design, got {type(design).__name__}")
+        if feedforward not in (None, 0, 1, 2) or isinstance(feedforward, bool):
+            raise ValueError(f"feedforward must be None (off) or the series order 0, 1 or 2, got {feedforward!r}")
+        ts = design.ts
+        self.design = design
+        self.dt = disc.dt
+        self.feedforward = feedforward
+        self._order = -1 if feedforward is None else int(feedforward)
+        self._M = disc.stacked
+        self._K = np.ascontiguousarray(disc.K)
+        self._box = np.array([ts.vmin, ts.vmax, ts.z2min])
+        ff = FeedforwardTable.build(ts)
+        self._ff = np.ascontiguousarray(ff.table)
+        self._ffgrid = np.array([ff.speeds[0], ff.speeds[1] - ff.speeds[0], ff.z2s[0], ff.z2s[1] - ff.z2s[0]])
+        self._w = np.zeros(NZ + 2 * NV)  # [z_{k-1}, v_{k-1}, v_k - v_{k-1}]; v = [tau, y, phi_r]
+        self.z = np.zeros(NZ)
+        self.mu = np.zeros(4)
+        self.reset()
+
+    @property
+    def x_hat(self) -> np.ndarray:
+        return self.z[:8].copy()
+
+    @property
+    def augmented(self) -> np.ndarray:
+        return self.z[8:].copy()
+
+    @property
+    def tau(self) -> float:
+        return float(self._w[10])
+
+    def reset(self, x_hat0: np.ndarray | None = None) -> None:
+        """Start again from ``x_hat0`` (default zeros: upright, straight); augmented states zeroed."""
+        self.z[:] = 0.0
+        if x_hat0 is not None:
+            x0 = np.asarray(x_hat0, dtype=float)
+            if x0.shape != (8,) or not np.all(np.isfinite(x0)):
+                raise MeasurementError(f"x_hat0 must be 8 finite numbers (the states of model.md), got {x0!r}")
+            self.z[:8] = x0
+        self._w[:] = 0.0
+        self.mu[:] = 0.0
+        self._k = 0
+        self._r1 = self._r2 = 0.0
+
+    def act(self, obs: np.ndarray) -> float:
+        """:meth:`update` from an observation of :class:`ptw_env.env.PTWRollEnv`.
+
+        Uses ``obs[ENV_OBS_INDEX] = [yaw_rate, roll_rate, delta, delta_rate, vx, phi_ref]``
+        (indices 2, 3, 0, 1, 5, 6 of the environment's observation table).
+        """
+        o = np.asarray(obs, dtype=np.float64)
+        if o.ndim != 1 or o.size < 7:
+            raise MeasurementError(f"obs must be the environment's observation (>= 7 numbers), got shape {o.shape}")
+        i = ENV_OBS_INDEX
+        return self.update(o[list(i[:4])], o[i[4]], o[i[5]])
+
+    def update(self, y: np.ndarray, vx: float, phi_ref: float) -> float:
+        """Advance the observer to the current sample and return the steering torque [N m] for the next period.
+
+        Parameters
+        ----------
+        y : array_like, shape (4,)
+            Measurements ``[yaw_rate, roll_rate, delta, delta_rate]`` (rad/s, rad/s, rad, rad/s) at ``t_k``.
+        vx : float
+            Measured forward speed [m/s] (premise ``z1``, clipped to the design range).
+        phi_ref : float
+            Reference roll angle [rad] at ``t_k``.
+
+        Returns
+        -------
+        float
+            ``tau_k`` [N m], to hold over ``[t_k, t_k + dt)``.
+
+        Raises
+        ------
+        MeasurementError
+            ``y`` not 4 finite numbers, or ``vx``, ``phi_ref`` not finite (the state is left unchanged).
+        """
+        yv = np.asarray(y, dtype=np.float64)
+        if yv.shape != (4,):
+            raise MeasurementError(
+                f"y must hold 4 measurements [yaw_rate, roll_rate, delta, delta_rate], got shape {yv.shape}")
+        vx = float(vx)
+        r = float(phi_ref)
+        if not (math.isfinite(vx) and math.isfinite(r)):
+            raise MeasurementError(f"vx and phi_ref must be finite, got vx={vx}, phi_ref={r}")
+        k = self._k
+        r1 = self._r1 if k >= 1 else r
+        r2 = self._r2 if k >= 2 else r1
+        rd = (r - r1) / self.dt
+        rdd = (r - 2.0 * r1 + r2) / (self.dt * self.dt)
+        tau = _update_kernel(self.z, self._w, self.mu, self._M, self._K, yv, vx, r, rd, rdd, k > 0,
+                             self._order, self._box, self._ff, self._ffgrid)
+        if math.isnan(tau):
+            raise MeasurementError(f"y must be finite, got {yv.tolist()}")
+        self._k = k + 1
+        self._r1, self._r2 = r, r1
+        return tau
+
+
+# --------------------------------------------------------------------------- a plain closed-loop harness
+@dataclass(frozen=True, eq=False)
+class ClosedLoopRun:
+    """Result of :func:`run_closed_loop`, sampled every ``dt`` (``T + 1`` samples).
+
+    ``x`` (T+1, 8) true states, ``x_hat`` (T+1, 8) estimates, ``y`` (T+1, 4) noisy
+    measurements, ``tau`` (T+1,) torques (``tau[k]`` held over ``[t_k, t_{k+1})``),
+    ``vx``, ``phi_ref`` (T+1,), ``fell`` (|phi| > 45 deg at some sample).
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    x_hat: np.ndarray
+    y: np.ndarray
+    tau: np.ndarray
+    vx: np.ndarray
+    phi_ref: np.ndarray
+    fell: bool
+
+    def roll_rmse_deg(self, skip_s: float = 0.0) -> float:
+        """Roll tracking RMSE ``rms(phi - phi_ref)`` [deg] after ``skip_s`` seconds."""
+        k = int(round(skip_s / (self.t[1] - self.t[0])))
+        return float(np.degrees(np.sqrt(np.mean((self.x[k:, PHI] - self.phi_ref[k:]) ** 2))))
+
+    def estimation_rmse(self, skip_s: float = 0.0) -> np.ndarray:
+        """Per-state estimation RMSE (units of model.md) after ``skip_s`` seconds."""
+        k = int(round(skip_s / (self.t[1] - self.t[0])))
+        return np.sqrt(np.mean((self.x[k:] - self.x_hat[k:]) ** 2, axis=0))
+
+
+def run_closed_loop(
+    controller: TSObserverController,
+    vx: np.ndarray,
+    phi_ref: np.ndarray,
+    noise_std: np.ndarray | float = 0.0,
+    seed: int | np.random.Generator | None = 0,
+    x0: np.ndarray | None = None,
+    plant=None,
+    vx_noise_std: float = 0.0,
+) -> ClosedLoopRun:
+    """Run the controller against the nonlinear plant in a plain loop (no Gymnasium).
+
+    The true plant is :class:`ptw_env.integrate.Stepper` of
+    ``ptw_env.dynamics.compile_plant()`` (or ``plant``), stepped with the
+    returned torque held over each period; the measurements are the true
+    ``[r, phi_dot, delta, delta_dot]`` plus seeded Gaussian noise of standard
+    deviation ``noise_std`` (per channel, same units). ``vx[k]`` [m/s] and
+    ``phi_ref[k]`` [rad] are the speed and reference at ``t_k``; the premise
+    uses ``vx[k]`` plus Gaussian noise of ``vx_noise_std``.
+    """
+    from ptw_env.dynamics import compile_plant
+    from ptw_env.integrate import Stepper
+
+    from .ts_model import MEASURED_STATES
+
+    vx = np.asarray(vx, dtype=float)
+    phi_ref = np.asarray(phi_ref, dtype=float)
+    if vx.ndim != 1 or phi_ref.shape != vx.shape:
+        raise ValueError(f"vx and phi_ref must be 1-D of equal length, got shapes {vx.shape}, {phi_ref.shape}")
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    std = np.broadcast_to(np.asarray(noise_std, dtype=float), (4,))
+    stepper = Stepper(compile_plant() if plant is None else plant, controller.dt)
+    n = vx.size
+    xs = np.zeros((n, 8))
+    xh = np.zeros((n, 8))
+    ys = np.zeros((n, 4))
+    taus = np.zeros(n)
+    x = np.zeros(8) if x0 is None else np.array(x0, dtype=float)
+    idx = list(MEASURED_STATES)
+    controller.reset()
+    fell = False
+    for k in range(n):
+        xs[k] = x
+        y = x[idx] + std * rng.standard_normal(4)
+        v_meas = vx[k] + vx_noise_std * rng.standard_normal()
+        tau = controller.update(y, v_meas, phi_ref[k])
+        ys[k], taus[k], xh[k] = y, tau, controller.x_hat
+        if abs(x[PHI]) > math.pi / 4:
+            fell = True
+            xs, xh, ys, taus, vx, phi_ref = xs[: k + 1], xh[: k + 1], ys[: k + 1], taus[: k + 1], vx[: k + 1], phi_ref[: k + 1]
+            break
+        if k + 1 < n:
+            stepper.step(x, tau, vx[k])
+    t = np.arange(xs.shape[0]) * controller.dt
+    return ClosedLoopRun(t=t, x=xs, x_hat=xh, y=ys, tau=taus, vx=vx, phi_ref=phi_ref, fell=fell)
+
+
+__all__ = [
+    "ClosedLoopRun",
+    "DiscreteTS",
+    "ENV_OBS_INDEX",
+    "FeedforwardTable",
+    "MeasurementError",
+    "TSObserverController",
+    "discretise",
+    "foh_discretise",
+    "reference_series",
+    "run_closed_loop",
+    "sampled_closed_loop",
+    "vertex_systems",
+]
