@@ -173,6 +173,9 @@ def _build_modes(p: argparse.ArgumentParser):
 
 # ---------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
+    import assist.commands  # noqa: F401  (registers design, evaluate, demo, observability)
+    import assist.estimate_cli  # noqa: F401  (registers estimate)
+
     parser = argparse.ArgumentParser(
         prog="ptw-assist",
         description="Powered two-wheeler lateral dynamics, estimation and rider assistance.",
