@@ -174,6 +174,7 @@ def _build_modes(p: argparse.ArgumentParser):
 # ---------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
     import assist.commands  # noqa: F401  (registers design, evaluate, demo, observability)
+    import assist.diagnose_cli  # noqa: F401  (registers diagnose)
     import assist.estimate_cli  # noqa: F401  (registers estimate)
 
     parser = argparse.ArgumentParser(

@@ -1,0 +1,279 @@
+"""``diagnose(log)``: what the nominal model gets wrong, which cause explains it, and the gain.
+
+Steps (each in its module):
+
+1. cut the log into 2 s replay windows, alternate ones held out
+   (:mod:`~assist.diagnose.data`);
+2. replay the nominal model on every window from a least-squares initial
+   state (:mod:`~assist.diagnose.replay`) and measure the noise level of each
+   channel from that residual (:mod:`~assist.diagnose.noise`);
+3. fit every cause of effects.md, and every pair, on the fitting windows
+   (:mod:`~assist.diagnose.hypotheses`);
+4. replay every fitted hypothesis on the held-out windows, rank them and pick
+   the verdict (:mod:`~assist.diagnose.selection`);
+5. test the verdict's held-out residual against the noise level, and say
+   where the nominal (and any unexplained) residual lives
+   (:mod:`~assist.diagnose.where`); build the report
+   (:mod:`~assist.diagnose.report`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from ptw_env.logs import RideLog, read_log
+from ptw_env.sensors import DEFAULT_NOISE_STD
+from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
+
+from . import selection
+from .data import DiagnoseInputError, auto_window, make_windows
+from .hypotheses import (MAX_NFEV, PAIR_MIN, PAIR_PARTNERS, PAIR_PARTNERS_SCORE, PAIR_TOP, HypothesisFitter,
+                         all_hypotheses)
+from .noise import noise_levels
+from .params import NOMINAL, to_causes
+from .replay import Replay
+from .report import DiagnosisReport, sig
+from .where import breakdown
+
+#: Gauss-Newton steps on the initial states when scoring on held-out windows.
+SCORE_STATE_STEPS = 3
+
+
+def _load(log_or_path: RideLog | str | os.PathLike) -> tuple[RideLog, str]:
+    if isinstance(log_or_path, RideLog):
+        return log_or_path, str(log_or_path.path) if log_or_path.path is not None else "<memory>"
+    if isinstance(log_or_path, (str, os.PathLike)):
+        return read_log(log_or_path), str(log_or_path)
+    raise DiagnoseInputError(f"diagnose: expected a RideLog or a path to a ride log, got {type(log_or_path).__name__}")
+
+
+def _positive(name: str, v: float) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise DiagnoseInputError(f"diagnose: {name} must be a number, got {v!r}") from None
+    if not (math.isfinite(f) and f > 0):
+        raise DiagnoseInputError(f"diagnose: {name} must be a positive number, got {v!r}")
+    return f
+
+
+def _progress(progress: bool | None, total: int):
+    from tqdm.auto import tqdm
+
+    disable = (not sys.stderr.isatty()) if progress is None else not progress
+    return tqdm(total=total, desc="fitting hypotheses", unit="hyp", disable=disable, leave=False)
+
+
+def diagnose(
+    log_or_path: RideLog | str | os.PathLike,
+    *,
+    window_s: float | None = None,
+    lead_s: float = 0.1,
+    pairs: bool | str = True,
+    vehicle: Vehicle | None = None,
+    encoder_quantum: float | None | str = "auto",
+    max_nfev: int = MAX_NFEV,
+    progress: bool | None = None,
+) -> DiagnosisReport:
+    """Diagnose a ride log against the nominal model (``shared/spec/diagnose.md``).
+
+    Parameters
+    ----------
+    log_or_path : RideLog or path
+        The log (logs.md); a path is read with :func:`ptw_env.logs.read_log`.
+    window_s : float, optional
+        Length of the scored part of each replay window [s]; default 2 s, shortened
+        down to 1 s for a log too short to give 16 windows
+        (:func:`assist.diagnose.data.auto_window`).
+    lead_s : float
+        Simulated but unscored start of each window [s] (default 0.1); also the
+        largest sensor delay that can be fitted.
+    pairs : bool or "all"
+        Also fit pairs of causes: ``True`` (default) by forward selection (the best
+        single cause with the next five and with three a score test picks, and the
+        pairs among the three best;
+        :meth:`assist.diagnose.hypotheses.HypothesisFitter.fit_all`), ``"all"`` every
+        pair, ``False`` none.
+    vehicle : Vehicle, optional
+        The nominal vehicle (default the reference scooter).
+    encoder_quantum : float, None or "auto"
+        Steering encoder step [rad] (:func:`assist.diagnose.noise.noise_levels`).
+    max_nfev : int
+        Function evaluations per hypothesis fit (scipy ``least_squares``).
+    progress : bool or None
+        Progress bar while hypotheses are fitted (``None``: when stderr is a terminal).
+
+    Returns
+    -------
+    DiagnosisReport
+
+    Raises
+    ------
+    ptw_env.logs.LogFormatError
+        A log file that breaks logs.md (file, line, column named).
+    DiagnoseInputError
+        A log too short for the replay windows, or a bad option.
+
+    Examples
+    --------
+    >>> from ptw_env.ride import ride_scenario
+    >>> log = ride_scenario("double_lane_change", effects={"road_bank": {"bank_rad": 0.05}}, seed=1).log
+    >>> rep = diagnose(log, pairs=False, progress=False)
+    >>> rep.causes[0]["cause"], abs(rep.causes[0]["params"]["bank_rad"] - 0.05) < 0.005, rep.explained
+    ('road_bank', True, True)
+    """
+    t_start = time.perf_counter()
+    lead_s = _positive("lead_s", lead_s)
+    if window_s is not None:
+        window_s = _positive("window_s", window_s)
+    if not isinstance(max_nfev, (int, np.integer)) or max_nfev < 1:
+        raise DiagnoseInputError(f"diagnose: max_nfev must be a positive integer, got {max_nfev!r}")
+    if not (encoder_quantum is None or encoder_quantum == "auto" or
+            (isinstance(encoder_quantum, (int, float)) and encoder_quantum > 0)):
+        raise DiagnoseInputError(
+            f"diagnose: encoder_quantum must be a step in rad, None or 'auto', got {encoder_quantum!r}")
+    if pairs not in (True, False, "all"):
+        raise DiagnoseInputError(f"diagnose: pairs must be True, False or 'all', got {pairs!r}")
+    vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
+    if not isinstance(vehicle, Vehicle):
+        raise DiagnoseInputError(f"diagnose: vehicle must be a ptw_env.vehicle.Vehicle, got {type(vehicle).__name__}")
+    log, name = _load(log_or_path)
+    if window_s is None:
+        window_s = auto_window(log.duration_s, lead_s)
+    win, notes = make_windows(log, window_s, lead_s, vehicle.vmin, vehicle.vmax, source=name)
+    chans = win.channels
+    all_w = np.arange(len(win))
+    fit_w, test_w = np.flatnonzero(win.train), np.flatnonzero(~win.train)
+
+    # 1. nominal replay (weighted by the reference sensors' noise), noise levels from its residual
+    replay = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in chans]), vehicle)
+    r, _ = replay.fit_states(NOMINAL[None], all_w)
+    noise, quantum = noise_levels(r[0] * replay.sigma, win.score, chans, encoder_quantum)
+    replay.set_sigma(np.array([noise[c] for c in chans]))
+
+    # 2. fit every hypothesis on the fitting windows
+    hyps = all_hypotheses(bool(pairs))
+    fitter = HypothesisFitter(replay, fit_w, max_nfev=int(max_nfev))
+    with _progress(progress, len(hyps) - 1) as bar:
+        fits = fitter.fit_all(hyps, progress=bar, pair_min=None if pairs == "all" else PAIR_MIN)
+    names = list(fits)
+
+    # 3. held-out replay of every fitted hypothesis
+    Z = np.array([fits[n].z for n in names])
+    rt, _ = replay.fit_states(Z, test_w, steps=SCORE_STATE_STEPS)
+    S = (rt**2).sum(axis=2)  # (H, Wt, C)
+    counts = win.score[test_w].sum(axis=1)  # (Wt, C)
+    ranked = selection.rank(names, [fits[n].hypothesis.causes for n in names],
+                            [fits[n].hypothesis.k for n in names], S, counts, chans)
+    best = selection.choose(ranked)
+    hb = names.index(best.name)
+
+    # 4. explained? the best hypothesis's residual on all windows (states fitted again from a
+    # second linearisation, to convergence) gives the noise level it is judged against
+    def refined(h: int) -> np.ndarray:
+        z = np.stack([Z[0], Z[h]])
+        r1, x1 = replay.fit_states(z, all_w, steps=SCORE_STATE_STEPS)
+        return replay.fit_states(z, all_w, x0=x1, steps=SCORE_STATE_STEPS)
+
+    ra, xa = refined(hb)
+    noise_v, _ = noise_levels(ra[1] * replay.sigma, win.score, chans, quantum)
+    sig_v = np.array([noise_v[c] for c in chans])
+
+    def ratio_to_noise(r: np.ndarray) -> np.ndarray:
+        e = r[test_w] * replay.sigma  # physical units, held-out windows
+        return np.sqrt((e**2).sum(axis=(0, 1)) / counts.sum(axis=0)) / sig_v
+
+    ratio = ratio_to_noise(ra[1])
+    explained = bool(np.all(ratio <= 1.0 + selection.EXPLAINED_TOL))
+    verdict, rv = best, ra[1]
+    if not explained and not best.supported:
+        # closest candidate: the best-scoring hypothesis that gains anything
+        cands = [r for r in selection.order(ranked) if r.name != "none" and r.gain > 0]
+        if cands:
+            verdict = cands[0]
+            rv = refined(names.index(verdict.name))[0][1]
+            ratio = ratio_to_noise(rv)
+    hv = names.index(verdict.name)
+    roll = win.Y[..., chans.index("roll")] if "roll" in chans else _replayed_roll(replay, xa[0], all_w)
+    nominal_where = breakdown(win, ra[0] * replay.sigma, sig_v, roll)
+    residual = breakdown(win, rv * replay.sigma, sig_v, roll)
+    residual["ratio_to_noise"] = {c: round(float(x), 3) for c, x in zip(chans, ratio)}
+
+    order = selection.order(ranked)
+    hyp_json = [
+        {"causes": to_causes(r.causes, fits[r.name].z), "gain": round(r.gain, 4), "score": round(r.score, 4),
+         "improvement": round(r.improvement, 4), "trimmed_improvement": round(r.trimmed, 4),
+         "supported": bool(r.supported)}
+        for r in order
+    ]
+    rms_0, rms_hv = (np.sqrt(((rt[h] * replay.sigma) ** 2).sum(axis=(0, 1)) / counts.sum(axis=0)) for h in (0, hv))
+    method = {
+        "replay": "multi-step prediction over short windows, each from its least-squares initial state",
+        "window_s": window_s,
+        "lead_s": round(win.lead * win.dt, 6),
+        "windows": {"fit": int(len(fit_w)), "held_out": int(len(test_w))},
+        "hypotheses": {"singles": sum(len(f.hypothesis.causes) == 1 for f in fits.values()),
+                       "pairs": sum(len(f.hypothesis.causes) == 2 for f in fits.values()),
+                       "pairs_rule": _pairs_rule(pairs)},
+        "encoder_quantum_rad": None if quantum is None else sig(quantum),
+        "score": f"held-out improvement in noise variances - {selection.PARAM_PENALTY} per parameter",
+        "support": f"held-out improvement >= {selection.MIN_IMPROVEMENT} noise variances per value, and >= half "
+                   f"that without the {selection.TRIM:.0%} most improved held-out windows (at least one)",
+        "explained": f"held-out RMS residual <= {1 + selection.EXPLAINED_TOL:g} x noise in every channel",
+        "notes": notes,
+    }
+    Yn = replay.outputs(Z[0][None], test_w, _states(replay, Z[0], test_w))[0]
+    Ye = replay.outputs(Z[hv][None], test_w, _states(replay, Z[hv], test_w))[0]
+    plot_data = {"t": win.t0[test_w][:, None] + np.arange(win.n) * win.dt, "Y": win.Y[test_w], "Ynom": Yn,
+                 "Yext": Ye, "score": win.score[test_w]}
+    return DiagnosisReport(
+        log=name,
+        explained=explained,
+        causes=to_causes(verdict.causes, fits[verdict.name].z),
+        gain=verdict.gain,
+        gain_channels=verdict.gain_channels,
+        nominal_rmse={c: float(v) for c, v in zip(chans, rms_0)},
+        verdict_rmse={c: float(v) for c, v in zip(chans, rms_hv)},
+        hypotheses=hyp_json,
+        nominal_where=nominal_where,
+        residual=residual,
+        noise={c: float(noise_v[c]) for c in chans},
+        method=method,
+        vehicle=vehicle,
+        seconds=time.perf_counter() - t_start,
+        sim_seconds=replay.sim_seconds,
+        sim_steps=replay.sim_steps,
+        plot_data=plot_data,
+    )
+
+
+def _pairs_rule(pairs: bool | str) -> str:
+    if pairs == "all":
+        return "every pair"
+    if not pairs:
+        return "no pairs"
+    return (f"forward selection: the best single cause with the next {PAIR_PARTNERS} and with the "
+            f"{PAIR_PARTNERS_SCORE} a score test finds would add most, and pairs among the {PAIR_TOP} best "
+            f"(causes improving the fit alone by >= {PAIR_MIN})")
+
+
+def _states(replay: Replay, z: np.ndarray, widx: np.ndarray) -> np.ndarray:
+    _, x = replay.fit_states(z[None], widx, steps=SCORE_STATE_STEPS)
+    return x
+
+
+def _replayed_roll(replay: Replay, x0: np.ndarray, widx: np.ndarray) -> np.ndarray:
+    """Roll angle of the nominal replay (for the lean bins of a log without a roll column)."""
+    from ptw_env.integrate import simulate
+
+    w = replay.win
+    X = simulate(np.ascontiguousarray(x0[:, :8]), w.tau[widx], w.vx[widx], dt=w.dt, vehicle=replay.vehicle)
+    return X[..., 0]
+
+
+__all__ = ["diagnose", "DiagnoseInputError"]

@@ -1,0 +1,318 @@
+"""Fit each cause of effects.md, alone and in pairs, to the fitting windows of a log.
+
+A hypothesis is a set of causes (:data:`assist.diagnose.params.CAUSES`);
+its free parameters are those causes' parameters, every other parameter stays
+nominal. Fitting minimises the noise-weighted multi-step prediction error of
+the fitting windows (:class:`assist.diagnose.replay.Replay`, each window
+with its own least-squares initial state):
+
+.. math::
+
+    \\hat\\theta_h = \\arg\\min_{\\theta} \\sum_{w \\in \\text{fit}} \\sum_{k,c}
+      r_{w,k,c}(\\theta)^2, \\qquad
+      r = (y - \\hat y(\\theta, \\hat x_{0,w}(\\theta))) / \\sigma_c .
+
+Search (all through the batched simulator, never a Python loop over vehicles):
+
+1. **screening**: every single cause on a coarse grid of sizes
+   (:data:`GRIDS`), all causes and sizes batched (``candidates x windows``
+   vehicles, array-valued effect parameters), on every other fitting window;
+2. **refinement**: :func:`scipy.optimize.least_squares` (trust-region
+   reflective, bounded) from the best grid point; its Jacobian is forward
+   differences computed in *one* batched simulation per iteration (one
+   vehicle per window and perturbed parameter);
+3. **pairs** (forward selection): the best single cause with the next five
+   single causes, with the three causes a score test finds would add most to
+   it (a second effect can be outranked alone by causes that mimic a large
+   first one), and the pairs among the three best; only causes that improve
+   the fit alone (:data:`PAIR_MIN`) take part. Each pair starts from the two
+   single-cause optima (or the better of them alone) and is refined the same
+   way. (All 45 pairs on request.)
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .params import CAUSES, LOWER, NOMINAL, PARAMS, SCALE, UPPER
+from .replay import STATE_STEPS, Replay
+
+#: Screening grids per cause, internal coordinates (one array per parameter; the grid is their product).
+GRIDS: dict[str, tuple[tuple[float, ...], ...]] = {
+    "tire_stiffness": ((0.5, 0.7, 1.0, 1.4, 2.0),) * 2,
+    "tire_saturation": ((0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0),),  # 1/mu_peak
+    "road_bank": ((-0.15, -0.08, -0.04, -0.02, 0.02, 0.04, 0.08, 0.15),),
+    "roll_moment_offset": ((-200.0, -80.0, -30.0, -10.0, 10.0, 30.0, 80.0, 200.0),),
+    "payload": ((-80.0, -40.0, 40.0, 80.0, 150.0, 250.0, 400.0),),
+    "steer_damping": ((3.0, 6.0, 9.0, 16.0, 22.0, 30.0, 45.0, 70.0),),
+    "relaxation_length": ((0.05, 0.1, 0.14, 0.28, 0.4, 0.6, 0.9, 1.3),),
+    "gyro_bias": ((-0.02, 0.0, 0.02),) * 2,
+    "ay_frame": ((-1.0, -0.5, -0.25, 0.25, 0.5, 1.0),),
+    "sensor_delay": ((0.005, 0.01, 0.02, 0.03, 0.045, 0.06, 0.08, 0.1),),
+}
+#: Relative forward-difference step of the Jacobian (fraction of each parameter's scale).
+FD_STEP = 1e-3
+#: A pair is fitted only when each of its causes alone improves the fitting windows by this much
+#: (mean square, units of the noise variance): a cause that explains nothing alone is not
+#: worth a second parameter set (``pairs="all"`` in :func:`assist.diagnose.diagnose` fits them all).
+PAIR_MIN = 0.01
+#: Pairs among this many best single causes are fitted, and the best with this many next ones.
+PAIR_TOP = 3
+PAIR_PARTNERS = 5
+#: ... and with this many that a score test from the best finds would add most to it.
+PAIR_PARTNERS_SCORE = 3
+#: Function evaluations allowed per hypothesis refinement (scipy ``max_nfev``).
+MAX_NFEV = 30
+#: Termination of the refinement (scipy ``ftol``, ``xtol``): a relative cost change of 1e-6 is
+#: ~0.03 noise variances over a log's fitting windows, far below any difference that matters.
+FTOL = 1e-6
+XTOL = 1e-5
+
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """A set of causes of effects.md (empty: ``none``)."""
+
+    causes: tuple[str, ...]
+
+    @property
+    def idx(self) -> tuple[int, ...]:
+        """Indices of the free parameters in :data:`assist.diagnose.params.PARAMS`."""
+        return tuple(i for c in self.causes for i in CAUSES[c])
+
+    @property
+    def k(self) -> int:
+        """Number of free parameters."""
+        return len(self.idx)
+
+    @property
+    def name(self) -> str:
+        return "+".join(self.causes) if self.causes else "none"
+
+
+def all_hypotheses(pairs: bool = True) -> list[Hypothesis]:
+    """``none``, every single cause, and (``pairs``) every pair, in effects.md order."""
+    singles = list(CAUSES)
+    out = [Hypothesis(())] + [Hypothesis((c,)) for c in singles]
+    if pairs:
+        out += [Hypothesis(p) for p in itertools.combinations(singles, 2)]
+    return out
+
+
+@dataclass
+class Fit:
+    """A hypothesis fitted on the fitting windows."""
+
+    hypothesis: Hypothesis
+    z: np.ndarray  #: full internal parameter vector (nominal outside the hypothesis)
+    cost: float  #: weighted sum of squared residuals on the fitting windows
+    nfev: int = 0
+    message: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+class HypothesisFitter:
+    """Fits hypotheses on a replay's fitting windows (module docstring).
+
+    Parameters
+    ----------
+    replay : Replay
+    widx : ndarray of int
+        The fitting windows.
+    max_nfev : int
+        Budget of :func:`scipy.optimize.least_squares` per hypothesis.
+    """
+
+    def __init__(self, replay: Replay, widx: np.ndarray, max_nfev: int = MAX_NFEV) -> None:
+        self.replay = replay
+        self.widx = np.asarray(widx)
+        self.max_nfev = int(max_nfev)
+        self.nominal_cost = float(self.costs(NOMINAL[None])[0])
+        self.n_values = int(replay.win.score[self.widx].sum())
+
+    # -- evaluation -------------------------------------------------------------
+    def residuals(self, Z: np.ndarray) -> np.ndarray:
+        """Weighted residuals of the fitting windows, shape (m, Ws * n * C), one row per parameter vector."""
+        r, _ = self.replay.fit_states(Z, self.widx)
+        return r.reshape(r.shape[0], -1)
+
+    def costs(self, Z: np.ndarray) -> np.ndarray:
+        """Weighted sum of squares per parameter vector, shape (m,)."""
+        r = self.residuals(Z)
+        return np.einsum("ij,ij->i", r, r)
+
+    # -- search -------------------------------------------------------------------
+    def screen(self, causes: list[str]) -> dict[str, tuple[np.ndarray, float]]:
+        """Best grid point of each single cause, on every other fitting window (a start for
+        :meth:`refine`; all causes and sizes batched). cause -> (z, cost on those windows)."""
+        Z, owner = [NOMINAL.copy()], ["none"]
+        for c in causes:
+            for combo in itertools.product(*GRIDS[c]):
+                z = NOMINAL.copy()
+                z[list(CAUSES[c])] = combo
+                if not np.array_equal(z, NOMINAL):
+                    Z.append(z)
+                    owner.append(c)
+        r, _ = self.replay.fit_states(np.array(Z), self.widx[::2])  # every other fitting window
+        cost = np.einsum("mwkc,mwkc->m", r, r)
+        out = {}
+        for c in causes:
+            sel = [i for i, o in enumerate(owner) if o == c]
+            j = sel[int(np.argmin(cost[sel]))]
+            j = j if cost[j] < cost[0] else 0  # no grid point beats nominal: start there
+            out[c] = (np.array(Z[j]), float(cost[j]))
+        return out
+
+    def refine(self, hyp: Hypothesis, z_start: np.ndarray) -> Fit:
+        """:func:`scipy.optimize.least_squares` on ``hyp``'s parameters from ``z_start``.
+
+        Each evaluated model gets its own initial-state sensitivity (:meth:`Replay.linearise`)
+        and :data:`STATE_STEPS` Gauss-Newton steps from the measured start states
+        (:attr:`Replay.x_guess`). The Jacobian is variable projection by forward differences:
+        every perturbed model re-fits the initial states by one Gauss-Newton step from the
+        unperturbed optimum, and so does the unperturbed model itself (the difference then
+        holds only the parameter's effect, not the last step's), all in one batched simulation.
+        """
+        idx = list(hyp.idx)
+        k = len(idx)
+        lo, hi, sc = LOWER[idx], UPPER[idx], SCALE[idx]
+        rp, widx = self.replay, self.widx
+        cache: dict[bytes, tuple[np.ndarray, np.ndarray, tuple]] = {}
+
+        def full(P: np.ndarray) -> np.ndarray:
+            Z = np.repeat(NOMINAL[None], len(P), axis=0)
+            Z[:, idx] = P
+            return Z
+
+        def evaluate(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
+            key = q.tobytes()
+            if key not in cache:
+                cache.clear()
+                Z = full(q[None])
+                x = rp.x_guess[widx][None]
+                r0, P = rp.linearise(Z, widx, x)
+                r, x = rp.gauss_newton(Z, widx, x, r0, P, STATE_STEPS)
+                cache[key] = (r.reshape(-1), x, P)
+            return cache[key]
+
+        def fun(q: np.ndarray) -> np.ndarray:
+            return evaluate(q)[0]
+
+        def jac(q: np.ndarray) -> np.ndarray:
+            _, x, P = evaluate(q)
+            h = FD_STEP * sc
+            h = np.where(q + h > hi, -h, h)  # step inward at the upper bound
+            Q = np.repeat(q[None], k + 1, axis=0)  # row 0: the unperturbed model, same procedure
+            Q[np.arange(1, k + 1), np.arange(k)] += h
+            Z = full(Q)
+            xk = np.broadcast_to(x, (k + 1,) + x.shape[1:])
+            Pk = tuple(np.broadcast_to(a, (k + 1,) + a.shape[1:]) for a in P)
+            R, _ = rp.gauss_newton(Z, widx, xk, rp.residual(Z, widx, xk), Pk, 1, safeguard=False)
+            R = R.reshape(k + 1, -1)
+            return ((R[1:] - R[0][None]) / h[:, None]).T
+
+        p0 = np.clip(z_start[idx], lo, hi)
+        res = least_squares(fun, p0, jac=jac, bounds=(lo, hi), x_scale=sc, method="trf",
+                            max_nfev=self.max_nfev, xtol=XTOL, ftol=FTOL, gtol=1e-8)
+        z = full(res.x[None])[0]
+        return Fit(hyp, z, float(2.0 * res.cost), int(res.nfev), str(res.message))
+
+    def added_value(self, fit: Fit) -> dict[str, float]:
+        """Score test: how much each other cause would add to ``fit`` (noise variances per value).
+
+        From ``fit``'s parameters, every parameter of every other cause is moved by one typical
+        size (:data:`assist.diagnose.params.SCALE`, inward at a bound: a secant, so that a cause
+        whose effect starts quadratically, tire saturation, still shows), the initial states
+        re-fitted by one Gauss-Newton step (all in one batched simulation), and the linearised
+        best combination of each cause's moves gives its predicted improvement.
+        """
+        rp, widx = self.replay, self.widx
+        z = fit.z
+        own = set(fit.hypothesis.idx)
+        others = [i for i in range(len(PARAMS)) if i not in own]
+        x = rp.x_guess[widx][None]
+        r0, P = rp.linearise(z[None], widx, x)
+        _, xb = rp.gauss_newton(z[None], widx, x, r0, P, STATE_STEPS)
+        Q = np.repeat(z[None], len(others) + 1, axis=0)  # row 0: unmoved, same procedure
+        for j, i in enumerate(others):
+            Q[j + 1, i] += SCALE[i] if z[i] + SCALE[i] <= UPPER[i] else -SCALE[i]
+        m = len(Q)
+        xm = np.broadcast_to(xb, (m,) + xb.shape[1:])
+        Pm = tuple(np.broadcast_to(a, (m,) + a.shape[1:]) for a in P)
+        R, _ = rp.gauss_newton(Q, widx, xm, rp.residual(Q, widx, xm), Pm, 1, safeguard=False)
+        R = R.reshape(m, -1)
+        D = R[1:] - R[0][None]
+        out = {}
+        for c, ii in CAUSES.items():
+            cols = [others.index(i) for i in ii if i in others]
+            if not cols or c in fit.hypothesis.causes:
+                continue
+            A = D[cols].T
+            a, *_ = np.linalg.lstsq(A, -R[0], rcond=None)
+            out[c] = float((R[0] @ R[0] - np.sum((R[0] + A @ a) ** 2)) / self.n_values)
+        return out
+
+    def improvement(self, fit: Fit) -> float:
+        """Fitting-window mean-square improvement over nominal, units of the noise variance."""
+        return (self.nominal_cost - fit.cost) / self.n_values
+
+    def fit_all(self, hypotheses: list[Hypothesis], progress=None, pair_min: float | None = PAIR_MIN) -> dict[str, Fit]:
+        """Screen the single causes, refine them, then the pairs from the single optima. name -> Fit.
+
+        Pairs (``pair_min`` not ``None``): forward selection among the single causes that alone
+        improve the fitting windows by at least ``pair_min`` (noise variances per value), ranked
+        by that improvement: the best paired with the next :data:`PAIR_PARTNERS`, with the
+        :data:`PAIR_PARTNERS_SCORE` causes that would add most to it (:meth:`added_value`, a
+        second effect whose own single fit is outranked by causes mimicking the first), plus
+        the pairs among the :data:`PAIR_TOP` best. ``pair_min=None``: every pair.
+        """
+        fits: dict[str, Fit] = {"none": Fit(Hypothesis(()), NOMINAL.copy(), self.nominal_cost)}
+        singles = [h for h in hypotheses if h.k and len(h.causes) == 1]
+        multi = [h for h in hypotheses if len(h.causes) > 1]
+        starts = self.screen([h.causes[0] for h in singles])
+        for h in singles:
+            z0, _ = starts[h.causes[0]]
+            fits[h.name] = self.refine(h, z0)
+            if progress is not None:
+                progress.update(1)
+        if pair_min is not None:
+            # forward selection among the causes that improve the fit alone: the best one with
+            # the next PAIR_PARTNERS, with the PAIR_PARTNERS_SCORE that would add most to it
+            # (score test), and the pairs among the PAIR_TOP best
+            ranked = [c for c in sorted((c for c in fits if c != "none"), key=lambda c: -self.improvement(fits[c]))
+                      if self.improvement(fits[c]) >= pair_min]
+            keep = {frozenset(p) for p in itertools.combinations(ranked[:PAIR_TOP], 2)}
+            if ranked:
+                best = ranked[0]
+                keep |= {frozenset((best, c)) for c in ranked[1:1 + PAIR_PARTNERS]}
+                added = self.added_value(fits[best])
+                extra = sorted((c for c in added if added[c] >= pair_min), key=lambda c: -added[c])
+                keep |= {frozenset((best, c)) for c in extra[:PAIR_PARTNERS_SCORE]}
+            multi = [h for h in multi if frozenset(h.causes) in keep]
+        if progress is not None:
+            progress.total = len(singles) + len(multi)
+            progress.refresh()
+        for h in multi:
+            # start from the best of: all parts at their single optima, or one part alone
+            # (two effects that each fit alone may together drive the model unstable)
+            starts = [NOMINAL.copy()]
+            for c in h.causes:
+                ii = list(CAUSES[c])
+                starts[0][ii] = fits[c].z[ii] if c in fits else NOMINAL[ii]
+                if c in fits:
+                    z = NOMINAL.copy()
+                    z[ii] = fits[c].z[ii]
+                    starts.append(z)
+            cost = self.costs(np.array(starts))
+            fits[h.name] = self.refine(h, starts[int(np.argmin(cost))])
+            if progress is not None:
+                progress.update(1)
+        return fits
+
+
+__all__ = ["Hypothesis", "Fit", "HypothesisFitter", "all_hypotheses", "GRIDS", "PARAMS"]

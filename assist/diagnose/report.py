@@ -1,0 +1,189 @@
+"""The diagnosis report: the JSON of ``shared/spec/diagnose.md``, the extended model, the figure.
+
+JSON structure (diagnose.md; keys beyond the contract are marked *extra*)::
+
+    {
+      "log": "LOG.csv",
+      "nominal": {"rmse": {channel: ...},            # held-out RMS prediction error, physical units
+                  "where": {...}},                   # extra: where the nominal residual lives
+      "verdict": {"explained": bool,
+                  "causes": [{"cause": ..., "params": {...}}],
+                  "gain": ...,                       # held-out, 0 = nominal, 1 = perfect
+                  "rmse": {channel: ...},
+                  "gain_channels": {channel: ...},   # extra: the gain per channel
+                  "residual": {...}},                # only when explained is false
+      "hypotheses": [{"causes": [...], "gain": ..., "score": ...,
+                      "improvement": ..., "trimmed_improvement": ..., "supported": bool}, ...],   # best first
+      "noise": {channel: ...},                       # extra: the noise levels used
+      "method": {...}                                # extra: windows, split, criteria
+    }
+
+Every number is rounded (4 significant digits for physical values, 4
+decimals for gains and scores), and nothing depends on the clock or a random
+generator, so the JSON is identical for the same log.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ptw_env.dynamics import Plant, compile_plant
+from ptw_env.effects import Effects
+from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
+
+from .measurement import UNITS
+
+
+def sig(x: float, digits: int = 4) -> float:
+    """``x`` rounded to ``digits`` significant digits (finite floats only)."""
+    return float(f"{float(x):.{digits}g}")
+
+
+@dataclass
+class DiagnosisReport:
+    """Result of :func:`assist.diagnose.diagnose` (see the module docstring for the JSON).
+
+    Attributes
+    ----------
+    log : str
+        The log's path (or ``"<memory>"``).
+    explained : bool
+        Whether the verdict explains the log to within the noise.
+    causes : list of dict
+        The verdict ``[{"cause": ..., "params": {...}}]`` (``none`` when the nominal model
+        explains the log; the closest candidates when ``explained`` is false).
+    gain : float
+        Held-out fractional reduction of the RMS prediction error by the verdict.
+    nominal_rmse, verdict_rmse : dict channel -> float
+        Held-out RMS prediction error per channel [physical units] before and after.
+    hypotheses : list of dict
+        Every hypothesis tried, best first.
+    seconds, sim_seconds : float
+        Wall time of the diagnosis and the part spent in the batched simulator [s]
+        (not in the JSON: it would not be deterministic).
+    """
+
+    log: str
+    explained: bool
+    causes: list[dict]
+    gain: float
+    gain_channels: dict[str, float]
+    nominal_rmse: dict[str, float]
+    verdict_rmse: dict[str, float]
+    hypotheses: list[dict]
+    nominal_where: dict
+    residual: dict | None
+    noise: dict[str, float]
+    method: dict[str, Any]
+    vehicle: Vehicle = REFERENCE_SCOOTER
+    seconds: float = math.nan
+    sim_seconds: float = math.nan
+    sim_steps: int = 0
+    plot_data: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    # -- the extended model ----------------------------------------------------------
+    @property
+    def effects(self) -> Effects:
+        """The verdict as :class:`ptw_env.effects.Effects`, e.g.
+        ``gymnasium.make("PTWRoll-v0", effects=report.effects)`` (empty for ``none``)."""
+        return Effects.from_causes(self.causes)
+
+    def extended_model(self) -> Plant:
+        """The nominal vehicle with the verdict's dynamic effects, compiled
+        (:func:`ptw_env.dynamics.compile_plant`), for simulation and observers. The verdict's
+        sensor effects are in :attr:`effects` (``.sensor``)."""
+        return compile_plant(self.vehicle, self.effects.dynamic)
+
+    # -- JSON ----------------------------------------------------------------------------
+    def to_json(self) -> dict[str, Any]:
+        """The report as diagnose.md's JSON structure (module docstring)."""
+        verdict: dict[str, Any] = {
+            "explained": bool(self.explained),
+            "causes": self.causes,
+            "gain": round(float(self.gain), 4),
+            "rmse": {c: sig(v) for c, v in self.verdict_rmse.items()},
+            "gain_channels": {c: round(float(v), 4) for c, v in self.gain_channels.items()},
+        }
+        if not self.explained and self.residual is not None:
+            verdict["residual"] = self.residual
+        return {
+            "log": self.log,
+            "nominal": {"rmse": {c: sig(v) for c, v in self.nominal_rmse.items()}, "where": self.nominal_where},
+            "verdict": verdict,
+            "hypotheses": self.hypotheses,
+            "noise": {c: sig(v) for c, v in self.noise.items()},
+            "method": self.method,
+        }
+
+    def summary(self) -> str:
+        """A few human-readable lines."""
+        names = ", ".join(
+            c["cause"] + ("(" + ", ".join(f"{k}={v:g}" for k, v in c["params"].items()) + ")" if c["params"] else "")
+            for c in self.causes
+        )
+        lines = [
+            f"verdict: {names}; {'explained' if self.explained else 'NOT explained'} to within the noise; "
+            f"held-out gain {self.gain:.3f}",
+            "held-out RMS prediction error, nominal -> verdict: "
+            + ", ".join(f"{c} {self.nominal_rmse[c]:.3g} -> {self.verdict_rmse[c]:.3g} {UNITS[c]}"
+                        for c in self.nominal_rmse),
+            "nominal residual: " + self.nominal_where.get("summary", ""),
+        ]
+        if not self.explained and self.residual is not None:
+            lines.append("unexplained residual: " + self.residual.get("summary", ""))
+        top = [h for h in self.hypotheses[:4]]
+        lines.append("best hypotheses: " + "; ".join(
+            f"{'+'.join(c['cause'] for c in h['causes'])} gain {h['gain']:.3f} score {h['score']:.3g}" for h in top))
+        return "\n".join(lines)
+
+    # -- figure --------------------------------------------------------------------------
+    def plot(self, path: str | None = None):
+        """Measured vs nominal vs extended model on the two channels that changed most (held-out
+        windows), and the RMS residual per channel before/after, in units of the noise."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        d = self.plot_data
+        chans = list(self.nominal_rmse)
+        fig, axs = plt.subplots(3, 1, figsize=(11, 9), constrained_layout=True)
+        if d:
+            t, Y, Yn, Ye, sc = d["t"], d["Y"], d["Ynom"], d["Yext"], d["score"]
+            order = sorted(range(len(chans)), key=lambda i: -self.gain_channels[chans[i]])[:2]
+            verdict = "+".join(c["cause"] for c in self.causes)
+            for ax, i in zip(axs[:2], order):
+                def line(a):
+                    a = np.where(sc[..., i], a[..., i], np.nan)
+                    return np.concatenate([np.r_[row, np.nan] for row in a])
+                tt = np.concatenate([np.r_[row, np.nan] for row in t])
+                ax.plot(tt, line(Y), color="0.55", lw=0.7, label="measured")
+                ax.plot(tt, line(Yn), color="C3", lw=1.0, label="nominal model")
+                ax.plot(tt, line(Ye), color="C0", lw=1.0, ls="--", label=f"extended model ({verdict})")
+                ax.set(xlabel="t [s] (held-out windows)", ylabel=f"{chans[i]} [{UNITS[chans[i]]}]",
+                       title=f"{chans[i]}: held-out gain {self.gain_channels[chans[i]]:.2f}")
+                ax.legend(loc="upper right", fontsize=8)
+        ax = axs[2]
+        x = np.arange(len(chans))
+        before = [self.nominal_rmse[c] / self.noise[c] for c in chans]
+        after = [self.verdict_rmse[c] / self.noise[c] for c in chans]
+        ax.bar(x - 0.2, before, 0.4, color="C3", label="nominal")
+        ax.bar(x + 0.2, after, 0.4, color="C0", label="extended")
+        ax.axhline(1.0, color="k", lw=0.8, ls=":", label="noise level")
+        ax.set_xticks(x, chans)
+        ax.set_yscale("log")
+        ax.set(ylabel="held-out RMS residual / noise",
+               title=f"residual before/after; {'explained' if self.explained else 'NOT explained'}, "
+                     f"gain {self.gain:.3f}")
+        ax.legend(fontsize=8)
+        if path is not None:
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+        return fig
+
+
+__all__ = ["DiagnosisReport", "sig"]

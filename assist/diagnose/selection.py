@@ -1,0 +1,140 @@
+"""Rank the fitted hypotheses on held-out windows and pick the verdict.
+
+Every hypothesis ``h`` (fitted on the fitting windows) is replayed on the
+held-out windows, each with its own least-squares initial state. With
+``S_h`` the noise-weighted sum of squared residuals there (``sum (e/sigma)^2``
+over ``n`` scored values) and ``S_0`` that of the nominal model:
+
+* **gain** ``= 1 - sqrt(S_h / S_0)``: the fractional reduction of the held-out
+  RMS prediction error (0: no better than nominal, 1: perfect; negative:
+  worse), overall and per channel;
+* **improvement** ``Delta_h = (S_0 - S_h) / n``: the held-out mean-square
+  error removed, in units of the noise variance;
+* **score** ``= Delta_h - PARAM_PENALTY k_h`` with ``k_h`` free parameters: the
+  ranking (``none`` scores 0). The penalty plays the role of BIC's
+  ``k ln n``: BIC's ``ln n`` per parameter assumes independent residuals,
+  but replay residuals are correlated over a window (initial-state fit,
+  quantisation, speed reconstruction), which inflates every fitted
+  improvement; a fixed price per parameter in noise units does not depend on
+  the sampling rate or the log's length.
+* **support**: a hypothesis can be the verdict only if its held-out
+  improvement is at least :data:`MIN_IMPROVEMENT` (an effect whose RMS is a
+  sizeable fraction of the noise) *and* does not rest on a few windows: with
+  the :data:`TRIM` share of the held-out windows that improve most left out
+  (at least one window), the
+  improvement of the others is still at least half of that. (A cause that
+  only fits one peculiar manoeuvre fails; an effect that shows only in some
+  manoeuvres, tire saturation in tight turns, say, passes: a rank test over
+  windows would count every window where it cannot show as evidence against
+  it.) A pair must, in addition, beat each of its two single causes in the
+  same way, else its better single cause stands.
+
+The verdict is the supported hypothesis with the best score, else ``none``.
+It *explains* the log when its held-out residual is at the noise level:
+every channel's RMS residual within ``1 + EXPLAINED_TOL`` of the noise
+level (:mod:`assist.diagnose.noise`), i.e. what is left beyond the noise
+is below ``sqrt((1 + EXPLAINED_TOL)^2 - 1)`` ~ 35 % of it. (A right model
+replays the simulator's own noisy logs at 1.00-1.03 times the noise: the
+rest is the speed channel's error and the initial-state fit.)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Price of one free parameter in held-out mean-square improvement, units of the noise variance.
+PARAM_PENALTY = 0.01
+#: Smallest held-out improvement a verdict needs, units of the noise variance.
+MIN_IMPROVEMENT = 0.02
+#: Share of the held-out windows left out (the most improved, at least one) for the robustness
+#: part of the support test.
+TRIM = 0.1
+#: Largest ratio of held-out RMS residual to noise level, minus 1, of an explained channel.
+EXPLAINED_TOL = 0.06
+
+
+@dataclass(frozen=True)
+class Ranked:
+    """One hypothesis's held-out evidence."""
+
+    name: str
+    causes: tuple[str, ...]
+    k: int
+    gain: float
+    gain_channels: dict[str, float]
+    improvement: float
+    trimmed: float  #: improvement without the most improved held-out windows (TRIM)
+    score: float
+    supported: bool
+
+
+def _trimmed(d: np.ndarray, n: np.ndarray) -> float:
+    """Mean improvement per value without the :data:`TRIM` share of windows that improve most.
+
+    ``d``: improvement per window (sum over its values), ``n``: values per window."""
+    k = max(1, int(round(TRIM * len(d))))
+    if len(d) <= k:
+        return -math.inf
+    keep = np.argsort(-d, kind="stable")[k:]
+    return float(d[keep].sum() / n[keep].sum())
+
+
+def _supported(d: np.ndarray, n: np.ndarray) -> tuple[float, float, bool]:
+    imp = float(d.sum() / n.sum())
+    tr = _trimmed(d, n)
+    return imp, tr, bool(imp >= MIN_IMPROVEMENT and tr >= 0.5 * MIN_IMPROVEMENT)
+
+
+def rank(names: list[str], causes: list[tuple[str, ...]], ks: list[int], S: np.ndarray, counts: np.ndarray,
+         channels: tuple[str, ...]) -> list[Ranked]:
+    """Evidence of each hypothesis (module docstring); ``names[0]`` must be ``none``.
+
+    Parameters
+    ----------
+    S : ndarray, shape (H, Wt, C)
+        Held-out weighted sums of squares per hypothesis, window and channel.
+    counts : ndarray, shape (Wt, C)
+        Scored values per window and channel.
+    """
+    nw = counts.sum(axis=1).astype(float)  # values per held-out window
+    Sw = S.sum(axis=2)  # (H, Wt)
+    S0 = float(Sw[0].sum())
+    Sc0 = S[0].sum(axis=0)
+    out = []
+    for h, name in enumerate(names):
+        Sh = float(Sw[h].sum())
+        gain = 1.0 - math.sqrt(Sh / S0) if S0 > 0 else 0.0
+        gc = {c: (1.0 - math.sqrt(float(S[h, :, i].sum()) / Sc0[i]) if Sc0[i] > 0 else 0.0)
+              for i, c in enumerate(channels)}
+        imp, tr, ok = _supported(Sw[0] - Sw[h], nw)
+        score = 0.0 if h == 0 else imp - PARAM_PENALTY * ks[h]
+        out.append(Ranked(name, causes[h], ks[h], gain, gc, imp, tr if h else 0.0, score, ok and h > 0))
+    # a pair must also beat each of its single causes
+    by_name = {r.name: i for i, r in enumerate(out)}
+    for i, r in enumerate(out):
+        if len(r.causes) < 2 or not r.supported:
+            continue
+        for c in r.causes:
+            j = by_name.get(c)
+            if j is not None and not _supported(Sw[j] - Sw[i], nw)[2]:
+                out[i] = dataclasses.replace(r, supported=False)
+                break
+    return out
+
+
+def choose(ranked: list[Ranked]) -> Ranked:
+    """The verdict: the supported hypothesis with the best score, else ``none`` (``ranked[0]``)."""
+    sup = [r for r in ranked if r.supported]
+    return max(sup, key=lambda r: r.score) if sup else ranked[0]
+
+
+def order(ranked: list[Ranked]) -> list[Ranked]:
+    """Best first: supported before unsupported, then by score (ties: fewer parameters, name)."""
+    return sorted(ranked, key=lambda r: (not (r.supported or r.name == "none"), -r.score, r.k, r.name))
+
+
+__all__ = ["Ranked", "rank", "choose", "order", "PARAM_PENALTY", "MIN_IMPROVEMENT", "TRIM", "EXPLAINED_TOL"]

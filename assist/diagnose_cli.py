@@ -1,0 +1,66 @@
+"""``ptw-assist diagnose LOG.csv --json REPORT.json [--plot REPORT.png]`` (``shared/spec/diagnose.md``).
+
+Registered into the one command line of :mod:`ptw_env.cli` when it builds its
+parser (``import assist.diagnose_cli``). A bad log ends with one line naming
+the file, the line and the column (:class:`ptw_env.logs.LogFormatError`) and
+exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ptw_env.cli import CLIError, _check_outputs, _write_json, command
+
+
+def _window(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a window length in seconds, got {text!r}") from None
+    if not (0.2 <= v <= 20.0):
+        raise argparse.ArgumentTypeError(f"window length must be in [0.2, 20] s, got {text!r}")
+    return v
+
+
+@command(
+    "diagnose",
+    "replay the nominal model against a ride log, name the effect of effects.md that explains the "
+    "difference, and measure the held-out gain",
+    "ptw-assist diagnose ride.csv --json report.json --plot report.png",
+)
+def _build_diagnose(p: argparse.ArgumentParser):
+    p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md), with an optional JSON sidecar")
+    p.add_argument("--json", default=None, metavar="REPORT.json", help="write the report (diagnose.md)")
+    p.add_argument("--plot", default=None, metavar="REPORT.png",
+                   help="measured vs nominal vs extended model, residual before/after")
+    p.add_argument("--window", type=_window, default=None, metavar="S",
+                   help="replay window length [s] (default 2, shorter for short logs)")
+    p.add_argument("--pairs", choices=("auto", "all", "none"), default="auto",
+                   help="pairs of causes: forward selection (auto, default), every pair, or none")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--overwrite", action="store_true", help="replace existing output files")
+
+    def run(a: argparse.Namespace) -> int:
+        from assist.diagnose import diagnose
+
+        _check_outputs(a, "json", "plot")
+        log = Path(a.log)
+        if not log.exists():
+            raise FileNotFoundError(f"{log}: no such file")
+        if log.is_dir():
+            raise CLIError(f"{log} is a directory, not a ride log")
+        pairs = {"auto": True, "all": "all", "none": False}[a.pairs]
+        rep = diagnose(log, window_s=a.window, pairs=pairs, progress=False if a.no_progress else None)
+        print(rep.summary())
+        print(f"diagnosed in {rep.seconds:.1f} s ({100 * rep.sim_seconds / rep.seconds:.0f} % in the simulator)")
+        if a.plot:
+            rep.plot(a.plot)
+            print(f"figure written to {a.plot}")
+        if a.json:
+            _write_json(a.json, rep.to_json(), a.overwrite)
+            print(f"report written to {a.json}")
+        return 0
+
+    return run
