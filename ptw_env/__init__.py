@@ -17,18 +17,25 @@ scenario.
 from .dynamics import Plant, compile_plant, linearise
 from .effects import Effects
 from .integrate import simulate
+from .sharp import SharpParameters, sharp_vehicle
 from .vehicle import REFERENCE_SCOOTER, STATE_NAMES, Vehicle, reference_scooter
+from .vehicle_files import VehicleFileError, load_vehicle, vehicle_names
 
 __all__ = [
     "Effects",
     "Plant",
     "REFERENCE_SCOOTER",
     "STATE_NAMES",
+    "SharpParameters",
     "Vehicle",
+    "VehicleFileError",
     "compile_plant",
     "linearise",
+    "load_vehicle",
     "reference_scooter",
+    "sharp_vehicle",
     "simulate",
+    "vehicle_names",
 ]
 
 __version__ = "0.1.0"

@@ -127,30 +127,34 @@ def _build_simulate(p: argparse.ArgumentParser):
 @command(
     "modes",
     "eigenvalues of the linearised vehicle per speed, labelled weave / wobble / capsize / tire / other",
-    "ptw-assist modes --speeds 5,10,20,30 --plot modes.png --json modes.json",
+    "ptw-assist modes --vehicle sharp1971 --speeds 5,10,20,30,40 --plot modes.png --locus locus.png --json modes.json",
 )
 def _build_modes(p: argparse.ArgumentParser):
     p.add_argument("--vehicle", default="reference-scooter", metavar="NAME_OR_FILE",
-                   help="vehicle preset name (default reference-scooter)")
+                   help="a vehicle preset (reference-scooter, sharp1971, cossalter-sport-touring) or the path of a "
+                        "TOML parameter file (ptw_env.vehicle_files); default reference-scooter")
     p.add_argument("--speeds", type=_speeds, default=[5.0, 10.0, 20.0, 30.0], metavar="V1,V2,...",
                    help="speeds in m/s (default 5,10,20,30)")
     p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE")
     p.add_argument("--plot", default=None, metavar="OUT.png")
+    p.add_argument("--locus", default=None, metavar="OUT.png",
+                   help="also write the classic root locus (Sharp 1971 style: real part vs frequency, speeds marked)")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true")
 
     def run(a: argparse.Namespace) -> int:
         from .effects import Effects
         from .modes import eigen_analysis, plot_modes
-        from .vehicle import REFERENCE_SCOOTER
+        from .vehicle_files import load_vehicle
 
-        if a.vehicle not in (REFERENCE_SCOOTER.name, "reference"):
-            raise CLIError(f"--vehicle: unknown vehicle {a.vehicle!r}; known: {REFERENCE_SCOOTER.name}")
-        _check_outputs(a, "plot", "json")
-        v = REFERENCE_SCOOTER
+        try:
+            v = load_vehicle(a.vehicle)
+        except ValueError as exc:
+            raise CLIError(f"--vehicle: {exc}") from None
+        _check_outputs(a, "plot", "locus", "json")
         bad = [s for s in a.speeds if not (v.vmin <= s <= v.vmax)]
         if bad:
-            raise CLIError(f"--speeds: {bad} m/s outside the model's valid range [{v.vmin}, {v.vmax}] m/s")
+            raise CLIError(f"--speeds: {bad} m/s outside the valid range [{v.vmin}, {v.vmax}] m/s of {v.name}")
         effects = Effects.parse(a.effect)
         res = eigen_analysis(v, speeds=a.speeds, effects=effects or None)
         js = res.to_json()
@@ -161,10 +165,13 @@ def _build_modes(p: argparse.ArgumentParser):
                     continue
                 parts.append(f"{lab} {re:+.2f}{'' if im == 0 else f'±{im:.2f}j'}")
             print(f"vx = {s:5.1f} m/s: " + ", ".join(parts))
-        print(f"weave stability speed: {res.stability_speed():.2f} m/s")
+        print(f"{v.name}: weave stability speed {res.stability_speed():.2f} m/s")
         if a.plot:
             plot_modes(res, a.plot)
             print(f"figure written to {a.plot}")
+        if a.locus:
+            plot_modes(res, a.locus, classic=True)
+            print(f"root locus written to {a.locus}")
         _write_json(a.json, js, a.overwrite)
         return 0
 

@@ -509,7 +509,63 @@ def _runs(labels: np.ndarray) -> list[tuple[int, int, str]]:
     return out
 
 
-def plot_modes(result: ModalResult, path: str | Path | None = None):
+#: Modes drawn in the classic root locus (``plot_modes(..., classic=True)``).
+CLASSIC_MODES = ("weave", "wobble", "capsize")
+
+
+def _classic_locus(fig, result: ModalResult) -> None:
+    """One panel in the style of Sharp (1971): Re(lambda) against frequency, speeds written on the loci.
+
+    The window holds the weave, wobble and capsize over the whole tracked
+    range (tyre lags and other modes far to the left are cut off); each
+    tracked branch is a line coloured by its name, the requested speeds are
+    dots labelled with the speed, the unstable half-plane is shaded and the
+    weave stability boundaries are marked where the weave crosses it.
+    """
+    from matplotlib.lines import Line2D
+
+    ax = fig.add_subplot()
+    gl, gl_lab = result.grid_eigenvalues, result.grid_labels
+    z = gl[np.isin(gl_lab, CLASSIC_MODES) & (gl.imag >= 0)]
+    lo, hi = min(float(z.real.min()), 0.0), max(float(z.real.max()), 0.0)
+    pad = 0.08 * (hi - lo) + 0.1
+    f_top = 1.12 * max(float(z.imag.max()) / (2 * np.pi), 1.0)
+    shown = set()
+    for j in range(gl.shape[1]):
+        for a, b, lab in _runs(gl_lab[:, j]):
+            seg = gl[a:b, j]
+            if not np.any(seg.imag >= 0):
+                continue
+            ax.plot(np.where(seg.imag >= 0, seg.real, np.nan), np.where(seg.imag >= 0, seg.imag / (2 * np.pi), np.nan),
+                    color=_COLOURS[lab], lw=1.8 if lab in CLASSIC_MODES else 1.0)
+            shown.add(lab)
+    for v, ev, labs in zip(result.speeds, result.eigenvalues, result.labels):
+        for lam, lab in zip(ev, labs):
+            if lab in CLASSIC_MODES and lam.imag >= 0:
+                x, y = float(lam.real), float(lam.imag) / (2 * np.pi)
+                ax.plot(x, y, "o", color=_COLOURS[lab], ms=4)
+                ax.annotate(f"{v:g}", (x, y), xytext=(4, 3), textcoords="offset points", fontsize=8, color=_COLOURS[lab])
+    for vs, kind in result.weave_boundaries():
+        lam, sh = participation_shares(result._state_matrix(vs))
+        f = max(float(w.imag) for w, lab in zip(lam, classify(lam, sh)) if lab == "weave") / (2 * np.pi)
+        ax.annotate(f"weave {'stable above' if kind == 'stabilises' else 'unstable above'} {vs:.2f} m/s", (0.0, f),
+                    xytext=(10, 22), textcoords="offset points", fontsize=8, color=_COLOURS["weave"],
+                    arrowprops={"arrowstyle": "-", "color": _COLOURS["weave"], "lw": 0.6})
+    ax.axvspan(0.0, hi + pad, color="tab:red", alpha=0.08, lw=0)
+    ax.axvline(0.0, color="k", lw=0.8)
+    ax.set_xlim(lo - pad, hi + pad)
+    ax.set_ylim(-0.02 * f_top, f_top)
+    ax.set_xlabel("real part of eigenvalue [1/s]  (shaded: unstable)")
+    ax.set_ylabel("frequency Im$\\lambda$/2$\\pi$ [Hz]")
+    vmin, vmax = float(result.grid_speeds.min()), float(result.grid_speeds.max())
+    ax.set_title(f"root locus of {result.vehicle_name}, {vmin:g}-{vmax:g} m/s (numbers: forward speed in m/s)"
+                 + ("" if not result.effects else f", {result.effects!r}"))
+    ax.grid(alpha=0.3)
+    ax.legend(handles=[Line2D([], [], color=_COLOURS[lab], label=lab) for lab in LABELS if lab in shown],
+              loc="center right", fontsize=8)
+
+
+def plot_modes(result: ModalResult, path: str | Path | None = None, *, classic: bool = False):
     """Root locus and modal characteristics versus speed.
 
     Panels: (a) root locus over the valid speed range, colour = speed, marker
@@ -519,11 +575,18 @@ def plot_modes(result: ModalResult, path: str | Path | None = None):
     weave stability boundaries (:meth:`ModalResult.weave_boundaries`) are
     marked in (b) and (c).
 
+    With ``classic=True`` the figure is instead one root locus in the style
+    of Sharp (1971) and the textbooks since: real part against frequency
+    [Hz] of the weave, wobble and capsize, speeds written on the loci at the
+    requested speeds (:func:`_classic_locus`).
+
     Parameters
     ----------
     result : ModalResult
     path : str or Path, optional
         Where to write the figure (format from the suffix, e.g. ``.png``).
+    classic : bool
+        The one-panel classic root locus instead of the three panels.
 
     Returns
     -------
@@ -537,6 +600,13 @@ def plot_modes(result: ModalResult, path: str | Path | None = None):
 
     if not isinstance(result, ModalResult):
         raise ModesInputError(f"plot_modes takes a ModalResult, got {type(result).__name__}")
+    if classic:
+        fig = Figure(figsize=(8, 6.5), layout="constrained")
+        FigureCanvasAgg(fig)
+        _classic_locus(fig, result)
+        if path is not None:
+            fig.savefig(path, dpi=120)
+        return fig
     fig = Figure(figsize=(14, 7), layout="constrained")
     FigureCanvasAgg(fig)
     gs = fig.add_gridspec(2, 2, width_ratios=(1.1, 1.0))
