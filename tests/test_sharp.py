@@ -395,3 +395,17 @@ def test_sharp_vehicle_is_a_vehicle_with_provenance():
     assert "sharp1971.toml" in SHARP.provenance["file"] and "Sharp 1971" in SHARP.provenance["M_f"]
     with pytest.raises(SharpParameterError):
         sharp_vehicle({"M_f": 1.0}, "x", 3.0, 40.0)
+
+
+def test_rider_and_diagnosis_work_on_the_built_vehicle():
+    """The LQR rider rides the standard machine, and the diagnosis finds a road bank hidden in its log."""
+    from assist.diagnose import diagnose
+    from ptw_env.ride import ride_scenario
+
+    res = ride_scenario("double_lane_change", effects={"road_bank": {"bank_rad": 0.05}}, seed=1, vehicle=SHARP)
+    s = res.summary()
+    assert not s["fell"] and s["roll_rmse_deg"] < 2.0
+    assert res.log.meta["vehicle"] == "sharp1971"
+    rep = diagnose(res.log, pairs=False, progress=False, vehicle=SHARP)
+    assert rep.explained and rep.causes[0]["cause"] == "road_bank"
+    assert rep.causes[0]["params"]["bank_rad"] == pytest.approx(0.05, abs=0.005)
