@@ -12,6 +12,7 @@ from gymnasium import spaces
 
 from .dynamics import compile_plant
 from .effects import Effects, as_effects
+from .friction import FrictionPlants, FrictionSchedule
 from .integrate import Stepper
 from .scenarios import Scenario, make_scenario
 from .sensors import CHANNELS, SensorConfig, SensorModel
@@ -156,6 +157,10 @@ class PTWRollEnv(gym.Env):
         prior-vs-true mismatch as in safe-control-gym; default: the nominal
         reference scooter.
     disturbances : sequence of Disturbance, optional
+    friction : FrictionSchedule, optional
+        Road friction along the ride (:mod:`ptw_env.friction`): scales the
+        true plant's tire stiffness and ``mu_peak`` by ``mu / mu_ref`` at
+        each control period (a wet patch); ``info["friction"]`` holds ``mu``.
     vehicle : Vehicle, optional
         The true vehicle (default: the reference scooter).
     dt : float
@@ -193,6 +198,7 @@ class PTWRollEnv(gym.Env):
         prior_effects: Effects | Mapping | list | str | None = None,
         prior_vehicle: Vehicle | None = None,
         disturbances: tuple[Disturbance, ...] | list[Disturbance] = (),
+        friction: FrictionSchedule | None = None,
         vehicle: Vehicle | None = None,
         dt: float = 0.01,
         tau_max: float = 60.0,
@@ -256,6 +262,8 @@ class PTWRollEnv(gym.Env):
 
         self.plant = compile_plant(self.vehicle, self.effects.dynamic)
         self._stepper = Stepper(self.plant, self.dt)
+        self.friction = friction
+        self._friction = None if friction is None else FrictionPlants(friction, self.vehicle, self.effects, self.dt)
         self._sensors = SensorModel(self.sensor_config, self.effects.sensor, dt=self.dt)
         self.profile = self.scenario.profile(self.dt, seed=scenario_seed)
         v0 = float(self.profile.vx[0])
@@ -308,6 +316,7 @@ class PTWRollEnv(gym.Env):
             "phi_ref": float(self.profile.phi_ref[k]),
             "vx": float(self.profile.vx[k]),
             "measurement": self._last_measurement.copy(),
+            **({} if self.friction is None else {"friction": self.friction.mu(k * self.dt, float(self.profile.s[k]))}),
         }
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -358,7 +367,10 @@ class PTWRollEnv(gym.Env):
                 d_roll += d.value(t, self.np_random)
         x = self.state
         psi = self._pose[2]
-        finite = self._stepper.step(x, tau + d_tau, vx, d_roll)
+        stepper = self._stepper
+        if self._friction is not None:
+            stepper = self._friction.stepper(self.friction.mu(t, float(self.profile.s[k])))
+        finite = stepper.step(x, tau + d_tau, vx, d_roll)
         # planar pose for the picture (forward Euler is plenty for drawing)
         self._pose[0] += self.dt * (vx * math.cos(psi) - x[2] * math.sin(psi))
         self._pose[1] += self.dt * (vx * math.sin(psi) + x[2] * math.cos(psi))

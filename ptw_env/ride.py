@@ -70,7 +70,9 @@ def ride_scenario(
     Row ``k`` of the log holds ``t_k``, the torque ``tau_k`` and measured
     speed held over ``[t_k, t_k + dt)``, and the sensor channels sampled at
     ``t_k`` (logs.md); the true state ``x_k`` goes to extra columns ``x_phi``
-    ... ``x_Fyr`` and the true speed to ``vx_true``, as in the reference logs.
+    ... ``x_Fyr`` and the true speed to ``vx_true``, as in the reference logs;
+    with ``friction=`` (a :class:`~ptw_env.friction.FrictionSchedule`, passed
+    to the environment) the true road friction goes to ``mu_true``.
     """
     env = PTWRollEnv(scenario=scenario, speed_kmh=speed_kmh, effects=effects, noise_pct=noise_pct,
                      sensors=sensors, **env_kwargs)
@@ -78,7 +80,7 @@ def ride_scenario(
     rider = LQRRider(vehicle=prior.vehicle, torque_noise_nm=rider_noise_nm, tau_max=env.tau_max, dt=env.dt)
     obs, info = env.reset(seed=seed)
     rider.reset(np.random.default_rng(np.random.SeedSequence([seed, 1])))
-    rows_y, rows_x, taus, vxs, refs, ts = [], [], [], [], [], []
+    rows_y, rows_x, taus, vxs, refs, ts, mus = [], [], [], [], [], [], []
     reason, fell = "scenario_end", False
     while True:
         x = info["state"]
@@ -89,6 +91,7 @@ def ride_scenario(
         vxs.append(info["vx"])
         refs.append(info["phi_ref"])
         ts.append(info["t"])
+        mus.append(info.get("friction", np.nan))
         action = np.array([tau / env.tau_max if env.normalize_action else tau], dtype=np.float32)
         obs, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
@@ -103,6 +106,8 @@ def ride_scenario(
     cols["vx_true"] = np.asarray(vxs)
     for i, nm in enumerate(STATE_NAMES):
         cols[f"x_{nm}"] = X[:, i]
+    if env.friction is not None:
+        cols["mu_true"] = np.asarray(mus)
     meta = {
         "vehicle": env.vehicle.name,
         "sample_rate_hz": round(1.0 / env.dt, 9),
@@ -111,7 +116,8 @@ def ride_scenario(
         "speed_kmh": speed_kmh,
         "duration_s": round(len(ts) * env.dt, 6),  # N dt, as the reference sidecars
         "seeds": {"env": seed},
-        "truth": {"causes": env.effects.to_causes()},
+        "truth": {"causes": env.effects.to_causes(),
+                  **({} if env.friction is None else {"friction": env.friction.to_json()})},
         "noise_pct": noise_pct,
         "rider_noise_nm": rider_noise_nm,
         "fell": fell,
