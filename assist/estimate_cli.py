@@ -93,6 +93,12 @@ def _build(p: argparse.ArgumentParser):
                         "(default: the sidecar's noise_pct, else the reference logs' sensors)")
     p.add_argument("--law", choices=("sensitivity", "paper"), default="sensitivity",
                    help="adaptive law of the adaptive observer: sensitivity (default) or the paper's eq. (18)")
+    p.add_argument("--gains", choices=("theorem2", "kalman"), default="theorem2",
+                   help="adaptive observer gains: theorem2 (the paper's certified LMI design, default) or kalman "
+                        "(vertex Kalman gains: certified for the linear model only, far more accurate stiffness)")
+    p.add_argument("--parametrisation", choices=("stiffness", "axle", "friction"), default="stiffness",
+                   help="what the adaptive observer adapts: the four stiffnesses (default, the paper's), one scale "
+                        "per axle, or one friction scale for all four")
     p.add_argument("--tau-a", type=float, default=None, metavar="S",
                    help="paper's law: adaptation time constant [s] (default 10)")
     p.add_argument("--plot", default=None, metavar="OUT.png")
@@ -103,7 +109,7 @@ def _build(p: argparse.ArgumentParser):
         from ptw_env.logs import read_log
         from ptw_env.sensors import SensorConfig
 
-        from .adaptive_design import AdaptiveDesignOptions, default_design
+        from .adaptive_design import AdaptiveDesignOptions, default_design, kalman_design
         from .adaptive_observer import AdaptiveObserver
         from .identification import estimate
         from .lpv_model import THETA_NAMES, build_lpv_model
@@ -118,19 +124,24 @@ def _build(p: argparse.ArgumentParser):
         if pct is not None:
             opts["noise_pct"] = max(pct, 0.5)
         try:
-            design = default_design(AdaptiveDesignOptions(**opts))
+            o = AdaptiveDesignOptions(**opts)
+            design = default_design(o) if a.gains == "theorem2" else kalman_design(options=o)
         except ValueError as exc:
             raise CLIError(f"{a.log}: the adaptive observer cannot be designed for this log ({exc})") from None
         if a.tau_a is not None and a.law != "paper":
             raise CLIError("--tau-a applies to --law paper only")
-        obs = AdaptiveObserver(design, law=a.law, tau_a=10.0 if a.tau_a is None else a.tau_a)
+        if a.law == "paper" and (a.gains, a.parametrisation) != ("theorem2", "stiffness"):
+            raise CLIError("--law paper adapts the four stiffnesses with Theorem-2 gains: "
+                           "use --gains theorem2 --parametrisation stiffness")
+        obs = AdaptiveObserver(design, law=a.law, tau_a=10.0 if a.tau_a is None else a.tau_a,
+                               parametrisation=a.parametrisation)
         sensors = SensorConfig.from_percent(pct) if pct is not None else SensorConfig()
         method = "ukf" if a.method == "ekf" else a.method
         res = estimate(log, method, sensors=sensors, observer=obs)
         out = res.to_json()
         out["log"] = str(a.log)
         if method == "adaptive":
-            out["law"] = a.law
+            out.update(law=a.law, gains=a.gains, parametrisation=a.parametrisation)
         nominal = build_lpv_model().theta0
         scales = _truth_scales(log.meta)
         truth = None
@@ -140,7 +151,7 @@ def _build(p: argparse.ArgumentParser):
             out["truth_stiffness"] = {n: float(v) for n, v in zip(THETA_NAMES, truth)}
             out["relative_error"] = {n: float(m / t - 1.0) for n, m, t in zip(THETA_NAMES, mean, truth)}
         print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; method {method}"
-              f"{f' ({a.law} law)' if method == 'adaptive' else ''}; "
+              f"{f' ({a.law} law, {a.gains} gains, {a.parametrisation})' if method == 'adaptive' else ''}; "
               f"stiffness = mean over the final third")
         print(f"{'parameter':<11} {'estimate':>10} {'C/C0':>7}" + (f" {'truth':>10} {'error':>8}" if truth is not None else ""))
         for j, n in enumerate(THETA_NAMES):

@@ -83,6 +83,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -228,6 +229,28 @@ class LPVModel:
     def stiffness(self, theta: np.ndarray) -> np.ndarray:
         """``C = C_0 + Theta`` [N/rad]."""
         return self.theta0 + np.asarray(theta, dtype=float)
+
+    def vehicle_with(self, theta: np.ndarray) -> Vehicle:
+        """The vehicle whose tires have ``C = C_0 + Theta``: rows 7-8 of ``A0``, ``A1`` plus ``D chi Theta``.
+
+        Exact for the model of this module (``E`` is the identity on the tire rows, so
+        ``E^-1`` leaves rows 7-8 alone); with ``Theta = theta_of_scales(s_f, s_r)`` it is the
+        plant of effects.md's ``tire_stiffness`` with those scales. Nothing else changes.
+        """
+        th = np.asarray(theta, dtype=float)
+        if th.shape != (4,) or not np.all(np.isfinite(th)):
+            raise LPVModelError(f"theta must hold 4 finite numbers [N/rad], got {theta!r}")
+        v = self.vehicle
+        A0, A1 = v.A0.copy(), v.A1.copy()
+        for j in range(4):
+            A0[FYF + j // 2] += th[j] * self.H0[j]
+            A1[FYF + j // 2] += th[j] * self.H1[j]
+        c = self.theta0 + th
+        tires = dataclasses.replace(v.tires, C_alpha_f0=c[0], C_gamma_f0=c[1], C_alpha_r0=c[2], C_gamma_r0=c[3])
+        s = c / self.theta0
+        return Vehicle(name=f"{v.name} (C/C_0 = {', '.join(f'{x:.3g}' for x in s)})", E=v.E, A0=A0, A1=A1, B=v.B,
+                       mass=v.mass, tires=tires, vmin=v.vmin, vmax=v.vmax,
+                       provenance={**v.provenance, "tires": f"{v.name} with Theta = {th.tolist()} N/rad"})
 
     def theta_of_scales(self, front_scale: float, rear_scale: float) -> np.ndarray:
         """``Theta`` of a ``tire_stiffness`` effect with these scales (exact, module docstring)."""
