@@ -9,7 +9,7 @@ import argparse
 import math
 from pathlib import Path
 
-from ptw_env.cli import CLIError, _check_outputs, _nonneg, _write_json, command
+from ptw_env.cli import CLIError, _check_outputs, _nonneg, _seed, _write_json, command
 
 DEFAULT_DEMO = {"scenario": "double_lane_change", "noise": 5.0, "seed": 0}
 
@@ -63,7 +63,7 @@ def _add_episode_args(p: argparse.ArgumentParser, controller: bool = True) -> No
     p.add_argument("--speed", type=float, default=None, metavar="KMH", help="cruise speed [km/h] where the scenario has one")
     p.add_argument("--noise", type=_nonneg, default=DEFAULT_DEMO["noise"], metavar="PCT",
                    help="sensor noise in percent of each channel's range (default 5, the paper's)")
-    p.add_argument("--seed", type=int, default=DEFAULT_DEMO["seed"])
+    p.add_argument("--seed", type=_seed, default=DEFAULT_DEMO["seed"], help="seed of the sensor noise (>= 0)")
     p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE",
                    help="an effect of effects.md in the true plant (the controller is designed on the nominal model)")
     p.add_argument("--vmin", type=float, default=None, help="TS design: lower end of the speed premise [m/s]")

@@ -65,6 +65,17 @@ def _speeds(text: str) -> list[float]:
     return vals
 
 
+def _seed(text: str) -> int:
+    """A seed for numpy's generators: a whole number >= 0."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"a seed must be >= 0, got {text!r}")
+    return v
+
+
 def _nonneg(text: str) -> float:
     try:
         v = float(text)
@@ -90,7 +101,7 @@ def _build_simulate(p: argparse.ArgumentParser):
                    help="an effect of effects.md in the true plant (repeatable)")
     p.add_argument("--noise", type=_nonneg, default=None, metavar="PCT",
                    help="sensor noise in percent of each channel's range (default: the reference logs' sensors)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise, rider noise and initial state")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the sensor noise, rider noise and initial state")
     p.add_argument("--rider-noise", type=_nonneg, default=3.0, metavar="NM", help="rider random torque [N m] (default 3)")
     p.add_argument("--log", required=True, metavar="OUT.csv", help="ride log to write (logs.md), with a JSON sidecar")
     p.add_argument("--plot", default=None, metavar="OUT.png")
@@ -193,7 +204,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version="ptw-assist 0.1.0")
     sub = parser.add_subparsers(dest="command", metavar="<command>")
     for name, (build, help_, example) in _COMMANDS.items():
-        p = sub.add_parser(name, help=help_, description=help_[0].upper() + help_[1:] + ".",
+        p = sub.add_parser(name, help=help_.replace("%", "%%"), description=help_[0].upper() + help_[1:] + ".",
                            epilog=f"example:\n  {example}", formatter_class=argparse.RawDescriptionHelpFormatter)
         p.set_defaults(_run=build(p))
     return parser
@@ -213,4 +224,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    # run as ``python -m ptw_env.cli``: use the imported module, whose registry the subcommands fill
+    from ptw_env.cli import main as _main
+
+    sys.exit(_main())

@@ -103,22 +103,24 @@ class PTWRollEnv(gym.Env):
     -----------------
     ``Box(float32)`` of the noisy sensors and the reference:
 
-    ===  ==========  ======================================  =======
-    idx  symbol      meaning                                  unit
-    ===  ==========  ======================================  =======
-    0    delta       steering angle, 10-bit encoder + noise   rad
-    1    delta_rate  steering rate, encoder                   rad/s
-    2    yaw_rate    yaw rate, IMU gyro                       rad/s
-    3    roll_rate   roll rate, IMU gyro                      rad/s
-    4    ay          lateral acceleration, IMU (road plane)   m/s^2
-    5    vx          forward speed, GPS (10 Hz, held)         m/s
-    6    phi_ref     reference roll angle                     rad
-    (7)  roll        roll angle, IMU attitude filter          rad
-    ===  ==========  ======================================  =======
+    ===  ==========  ======================================  =======  ==========
+    idx  symbol      meaning                                  unit     bound +-
+    ===  ==========  ======================================  =======  ==========
+    0    delta       steering angle, 10-bit encoder + noise   rad      0.6
+    1    delta_rate  steering rate, encoder                   rad/s    10
+    2    yaw_rate    yaw rate, IMU gyro                       rad/s    5
+    3    roll_rate   roll rate, IMU gyro                      rad/s    10
+    4    ay          lateral acceleration, IMU (road plane)   m/s^2    50
+    5    vx          forward speed, GPS (10 Hz, held)         m/s      60
+    6    phi_ref     reference roll angle                     rad      pi/4
+    (7)  roll        roll angle, IMU attitude filter          rad      3.2
+    ===  ==========  ======================================  =======  ==========
 
     Index 7 exists only with ``observe_roll=True``: by default the roll angle
     must be estimated (the point of the observers in ``assist``). The true
-    state is never in the observation; it is in ``info["state"]``.
+    state is never in the observation; it is in ``info["state"]``. Each entry
+    is clipped to its bound, the sensor's full scale (a saturated sensor);
+    the bounds lie far beyond anything a ride that stays upright produces.
 
     Reward
     ------

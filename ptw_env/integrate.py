@@ -43,6 +43,15 @@ def _as_plant(vehicle: Vehicle | Plant | None, effects) -> Plant:
     return compile_plant(vehicle, effects)
 
 
+def _float_array(a, name: str) -> np.ndarray:
+    """``a`` as a float array, or one clear error naming the argument (not numpy's)."""
+    try:
+        return np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        kind = "ragged (rows of different lengths)" if "inhomogeneous" in str(exc) else "not numeric"
+        raise SimulationInputError(f"{name} must be an array of numbers; it is {kind}: {exc}") from None
+
+
 def simulate(
     x0,
     tau,
@@ -95,9 +104,7 @@ def simulate(
     nsub = substeps_for(dt) if substeps is None else int(substeps)
     if nsub < 1:
         raise SimulationInputError(f"substeps must be >= 1, got {substeps!r}")
-    x0 = np.asarray(x0, dtype=float)
-    tau = np.asarray(tau, dtype=float)
-    vx = np.asarray(vx, dtype=float)
+    x0, tau, vx = (_float_array(a, n) for a, n in ((x0, "x0"), (tau, "tau"), (vx, "vx")))
     if x0.ndim not in (1, 2) or x0.shape[-1] != 8:
         raise SimulationInputError(f"x0 must have shape (8,) or (N, 8), got {x0.shape}")
     batched = x0.ndim == 2 or tau.ndim == 2 or vx.ndim == 2

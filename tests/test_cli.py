@@ -93,3 +93,19 @@ def test_console_script_help_has_example():
     out = subprocess.run([sys.executable, "-m", "ptw_env.cli", "simulate", "--help"],
                          capture_output=True, text=True, check=True).stdout
     assert "example:" in out and "ptw-assist simulate" in out
+
+
+@pytest.mark.parametrize("cmd", [["simulate", "--log", "x.csv"], ["evaluate"], ["demo"]])
+def test_negative_seed_is_refused_in_one_line(cmd, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([*cmd, "--seed", "-1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert e.value.code == 2 and "a seed must be >= 0" in err[-1]
+
+
+def test_top_level_help_lists_every_command_readably():
+    out = subprocess.run([sys.executable, "-m", "ptw_env.cli", "--help"], capture_output=True, text=True,
+                         check=True).stdout
+    assert "option_strings" not in out and "5 % sensor noise" in " ".join(out.split())
+    for name in ("simulate", "modes", "design", "evaluate", "demo", "estimate", "observability", "diagnose"):
+        assert f"    {name}" in out

@@ -185,6 +185,17 @@ def test_nan_in_x0_is_named():
         simulate(x0, np.zeros(10), 20.0)
 
 
+@pytest.mark.parametrize("kw, match", [
+    ({"vx": "abc"}, "vx must be an array of numbers; it is not numeric"),
+    ({"tau": [[1.0, 2.0], [3.0]]}, "tau must be an array of numbers; it is ragged"),
+    ({"x0": ["a"] * 8}, "x0 must be an array of numbers"),
+])
+def test_non_numeric_input_is_named(kw, match):
+    args = {"x0": np.zeros(8), "tau": np.zeros(5), "vx": 15.0, **kw}
+    with pytest.raises(SimulationInputError, match=match):
+        simulate(**args)
+
+
 def test_speed_range_is_inclusive():
     x = simulate(np.zeros(8), np.zeros(3), np.array([3.0, 40.0, 3.0]))
     assert x.shape == (4, 8) and np.all(x == 0)  # upright at rest is an equilibrium
