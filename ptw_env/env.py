@@ -169,6 +169,12 @@ class PTWRollEnv(gym.Env):
         Control period [s] (default 0.01, the 100 Hz sensor rate).
     tau_max, normalize_action, observe_roll, init_roll_deg,
     reward_roll_scale_deg, reward_effort_weight : see above.
+    scenario_seed : int, optional
+        Seed of a randomised scenario's course (:class:`~ptw_env.scenarios.Urban`), fixed for
+        the environment's life (default: the scenario's own ``seed`` field).
+    randomize_course : bool
+        Draw a new course at every ``reset`` from the environment's generator (``reset(seed=...)``
+        reproduces it); for scenarios without randomisation it changes nothing.
     render_mode : {"rgb_array", "human", None}
 
     Version history
@@ -210,6 +216,7 @@ class PTWRollEnv(gym.Env):
         reward_roll_scale_deg: float = 2.0,
         reward_effort_weight: float = 0.01,
         scenario_seed: int | None = None,
+        randomize_course: bool = False,
         render_mode: str | None = None,
     ) -> None:
         super().__init__()
@@ -261,6 +268,7 @@ class PTWRollEnv(gym.Env):
         self._effort_w = float(reward_effort_weight)
         self.render_mode = render_mode
         self.scenario_seed = scenario_seed
+        self.randomize_course = bool(randomize_course)
 
         self.plant = compile_plant(self.vehicle, self.effects.dynamic)
         self._stepper = Stepper(self.plant, self.dt)
@@ -335,6 +343,10 @@ class PTWRollEnv(gym.Env):
             if x0.shape != (8,) or not np.all(np.isfinite(x0)):
                 raise EnvConfigError(f"reset option x0 must be 8 finite numbers (the state of model.md), got {x0!r}")
             self.state = x0.copy()
+        if self.randomize_course:
+            # a new course from the environment's one generator (STYLE: everything from np_random)
+            self.profile = self.scenario.profile(self.dt, seed=int(self.np_random.integers(2**31 - 1)))
+            self.max_steps = len(self.profile.t) - 1
         self._k = 0
         self._sensors.reset(self.np_random)
         self._pose[:] = (self.profile.X[0], self.profile.Y[0], self.profile.psi[0])

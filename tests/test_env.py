@@ -246,3 +246,20 @@ def test_render_rgb_array():
     assert frame.dtype == np.uint8 and frame.shape == (320, 640, 3)
     # not blank: both panels have drawn content in more than two colours
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 10
+
+
+def test_randomize_course_draws_from_the_env_generator():
+    """randomize_course=True: a new urban course per reset, reproduced by the reset seed; off by default."""
+    from ptw_env.env import PTWRollEnv
+
+    env = PTWRollEnv(scenario="urban", randomize_course=True)
+    env.reset(seed=1)
+    a = env.profile.kappa.copy()
+    env.reset(seed=2)
+    b = env.profile.kappa.copy()
+    env.reset(seed=1)
+    assert np.array_equal(env.profile.kappa, a) and not np.array_equal(a, b)
+    fixed = PTWRollEnv(scenario="urban")
+    k0 = fixed.profile.kappa.copy()
+    fixed.reset(seed=5)
+    assert np.array_equal(fixed.profile.kappa, k0)
