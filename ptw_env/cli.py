@@ -194,6 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     import assist.commands  # noqa: F401  (registers design, evaluate, demo, observability)
     import assist.diagnose_cli  # noqa: F401  (registers diagnose)
     import assist.estimate_cli  # noqa: F401  (registers estimate)
+    import assist.risk_cli  # noqa: F401  (registers risk)
 
     parser = argparse.ArgumentParser(
         prog="ptw-assist",

@@ -1,0 +1,389 @@
+"""Evaluation rides of the risk warning, with tire saturation on, and the simulator's truth.
+
+Ride types (all with ``tire_saturation:mu_peak=0.9`` and a
+:class:`~ptw_env.friction.FrictionSchedule`, so the true peak friction is the
+schedule's ``mu`` and the stiffness scales with it; 5 % sensor noise; the
+scenario's LQR rider, :func:`ptw_env.ride.ride_scenario`):
+
+``dry``
+    The urban scenario ridden at a brisk normal pace, ``lateral_g = 0.5``
+    (cornering at about 56 % of the grip, 27 deg of lean) on dry asphalt,
+    ``mu = 0.9`` throughout; 60 s. The route is drawn from the seed.
+``wet``
+    The same ride (same route and pace) onto a wet patch: ``mu`` drops from
+    0.9 to 0.45 (over 2 m) at mid-ride distance and stays there.
+``dry_long``, ``wet_long``
+    The same with curve entries of 2.5 s instead of 1.2 s (``ramp_s``;
+    rural-road clothoids instead of urban corners).
+``too_fast``
+    :class:`CurveTooFast`: a damp road (``mu`` 0.55-0.62 throughout, drawn
+    from the seed), three warm-up curves at 0.3 g, a straight, then a curve
+    entered without braking at ``overspeed`` (1.2-1.35) times the speed the
+    friction allows; the preview of the curve comes from the ``kappa`` column
+    (the route's curvature: the navigation map).
+
+Saturation (the truth a warning must precede)
+---------------------------------------------
+An axle *saturates* when its steady-state force reaches 95 % of its peak,
+``|F_ss,k| >= 0.95 Fmax_k`` with ``F_ss = Fmax tanh(F_lin / Fmax)``,
+``Fmax_k = mu(t) Fz_k`` (effects.md; ``F_lin / Fmax >= atanh(0.95) = 1.83``:
+the slip is 1.83 times the one at which a linear tire would reach the peak).
+``F_ss`` is read from the true state (:meth:`ptw_env.dynamics.Plant.steady_tire_force`
+of the plant at the friction of that instant). A saturation *event* starts
+at the first saturated sample after at least ``gap_s`` = 2 s without one.
+
+Lead time: ``t_event - t_warn`` where ``t_warn`` is the onset of the warning
+episode (level >= caution, or >= danger, counted separately) that is active
+at ``t_event``; an event without an active warning is *missed* (its
+``late_s`` says how long after the event the first warning came, if any).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ptw_env.effects import as_effects
+from ptw_env.friction import FrictionPlants, FrictionSchedule
+from ptw_env.scenarios import (Scenario, ScenarioError, _positive, _Seg, _segments_to_grid, _space_based,
+                               _speed_plan, make_scenario)
+from ptw_env.vehicle import G, REFERENCE_SCOOTER
+
+#: Base effects of every evaluation ride: saturating tires whose peak friction is the road's.
+EVAL_EFFECTS = "tire_saturation:mu_peak=0.9"
+#: An axle saturates when |F_ss| reaches this fraction of Fmax.
+SATURATION_FRACTION = 0.95
+#: Ride types of :func:`make_case`.
+KINDS = ("dry", "wet", "dry_long", "wet_long", "too_fast")
+
+
+@dataclass(frozen=True)
+class CurveTooFast(Scenario):
+    """Warm-up curves on a damp road, then a curve entered too fast (no braking).
+
+    Parameters
+    ----------
+    speed_kmh : float
+        Cruise speed [km/h] (default 70), kept into the critical curve.
+    mu_road : float
+        Road friction the critical curve's radius is computed from [-] (default 0.6).
+    overspeed : float
+        ``v^2 kappa / (mu_road g)`` of the critical curve [-] (default 1.25).
+    warmup_g : float
+        Lateral acceleration of the warm-up curves [g] (default 0.3).
+    ramp_s : float
+        Curvature ramps at the curves' entry and exit [s of travel] (default 1.2).
+    seed : int
+        Draws the warm-up route and the critical curve's direction.
+    duration_s : float
+        Default 45 s.
+
+    Examples
+    --------
+    >>> p = CurveTooFast().profile()
+    >>> round(float(np.max(np.abs(p.vx**2 * p.kappa)) / (0.6 * 9.81)), 2)
+    1.25
+    """
+
+    name: ClassVar[str] = "curve_too_fast"
+    duration_s: float = 45.0
+    speed_kmh: float = 70.0
+    mu_road: float = 0.6
+    overspeed: float = 1.25
+    warmup_g: float = 0.3
+    ramp_s: float = 1.2
+    seed: int = 0
+
+    def _validate(self) -> None:
+        _positive(self, "speed_kmh", "mu_road", "overspeed", "warmup_g", "ramp_s")
+        if self.overspeed * self.mu_road > math.tan(math.radians(40.0)):
+            raise ScenarioError(f"{self.name}: overspeed * mu_road = {self.overspeed * self.mu_road:.3f} g needs more "
+                                "than 40 deg of lean (the scenarios' limit)")
+
+    def _segments(self, rng: np.random.Generator) -> tuple[list[_Seg], float]:
+        v = self.speed_kmh / 3.6
+        segs = [_Seg(length=60.0, vcap=v)]
+        sign = 1.0 if rng.random() < 0.5 else -1.0
+        for _ in range(3):
+            R = rng.uniform(60.0, 150.0)
+            vt = min(v, math.sqrt(self.warmup_g * G * R))
+            segs += [_Seg(length=rng.uniform(40.0, 80.0), vcap=v),
+                     _Seg(angle=sign * math.radians(rng.uniform(30.0, 60.0)), radius=R, ramp=vt * self.ramp_s, vcap=v)]
+            sign = -sign
+        segs.append(_Seg(length=150.0, vcap=v))
+        s_crit = sum(g.length if math.isinf(g.radius) else g.radius * abs(g.angle) + min(g.ramp, g.radius * abs(g.angle))
+                     for g in segs)
+        Rc = v * v / (self.overspeed * self.mu_road * G)
+        segs += [_Seg(angle=sign * math.radians(90.0), radius=Rc, ramp=v * self.ramp_s, vcap=v),
+                 _Seg(length=v * self.duration_s + 100.0, vcap=v)]
+        return segs, s_crit
+
+    def _trajectory(self, t, rng):
+        segs, s_crit = self._segments(rng)
+        s, k, cap = _segments_to_grid(segs)
+        k_plan = np.where(s < s_crit, k, 0.0)  # the rider does not slow down for the critical curve
+        vplan = _speed_plan(s, k_plan, cap, self.warmup_g, 2.0, 3.0, 10.0)
+        return _space_based(t, s, vplan, k, self.name)
+
+    def profile(self, dt: float = 0.01, seed: int | None = None):
+        """Sample the ride; ``seed`` (default: the field) draws the route."""
+        return Scenario.profile(self, dt, self.seed if seed is None else seed)
+
+
+@dataclass(frozen=True)
+class RideCase:
+    """One evaluation ride: scenario, friction schedule, effects, noise and seed."""
+
+    kind: str
+    seed: int
+    scenario: Scenario
+    friction: FrictionSchedule
+    effects: str = EVAL_EFFECTS
+    noise_pct: float = 5.0
+    notes: dict = field(default_factory=dict)
+
+
+def make_case(kind: str, seed: int) -> RideCase:
+    """The ride of type ``kind`` (one of :data:`KINDS`) for ``seed`` (module docstring)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown ride type {kind!r}; known: {', '.join(KINDS)}")
+    seed = int(seed)
+    if kind == "too_fast":
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 77]))
+        mu = float(rng.uniform(0.55, 0.62))
+        sc = CurveTooFast(speed_kmh=float(rng.uniform(60.0, 80.0)), mu_road=mu,
+                          overspeed=float(rng.uniform(1.2, 1.35)), seed=seed)
+        return RideCase(kind, seed, sc, FrictionSchedule.constant(mu), notes={"mu_road": mu,
+                                                                               "overspeed": sc.overspeed})
+    ramp = 2.5 if kind.endswith("_long") else 1.2
+    sc = make_scenario("urban", lateral_g=0.5, duration_s=60.0, ramp_s=ramp, seed=seed)
+    if kind.startswith("dry"):
+        return RideCase(kind, seed, sc, FrictionSchedule.constant(0.9))
+    prof = sc.profile(0.01)
+    s_mid = float(prof.s[len(prof.s) // 2])
+    return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s_mid, mu_before=0.9, mu_patch=0.45, ramp=2.0),
+                    notes={"patch_start_m": s_mid, "patch_start_s": float(prof.t[len(prof.t) // 2])})
+
+
+def true_utilisation(states: np.ndarray, vx: np.ndarray, mu: np.ndarray, friction: FrictionSchedule,
+                     effects=EVAL_EFFECTS) -> np.ndarray:
+    """``|F_ss,k| / Fmax_k`` per sample and axle (K, 2) from the true states, speeds and friction
+    (``Fmax = inf`` without tire_saturation: then ``|F_ss| / (mu Fz)``)."""
+    plants = FrictionPlants(friction, effects=as_effects(effects))
+    X = np.asarray(states, dtype=float)
+    out = np.empty((len(X), 2))
+    mu = np.asarray(mu, dtype=float)
+    for m in np.unique(np.round(mu, 3)):
+        idx = np.flatnonzero(np.round(mu, 3) == m)
+        p = plants.plant(float(m))
+        fss = p.steady_tire_force(X[idx], np.asarray(vx, dtype=float)[idx])
+        fz = np.array([p.vehicle.tires.Fzf, p.vehicle.tires.Fzr])
+        fmax = np.where(np.isfinite(p.fmax), p.fmax, float(m) * fz)
+        out[idx] = np.abs(fss) / fmax
+    return out
+
+
+def saturation_events(t: np.ndarray, util: np.ndarray, fraction: float = SATURATION_FRACTION,
+                      gap_s: float = 2.0) -> np.ndarray:
+    """Onset times [s] of saturation events (module docstring).
+
+    >>> saturation_events(np.arange(6) * 1.0, np.array([0.5, 0.96, 0.97, 0.5, 0.5, 0.99]))
+    array([1., 5.])
+    """
+    u = np.asarray(util, dtype=float)
+    sat = (u.max(axis=1) if u.ndim == 2 else u) >= fraction
+    out: list[float] = []
+    last = -math.inf
+    for k in np.flatnonzero(sat):
+        if t[k] - last >= gap_s:
+            out.append(float(t[k]))
+        last = float(t[k])
+    return np.array(out)
+
+
+def lead_time(t: np.ndarray, level: np.ndarray, t_event: float, min_level: int) -> dict[str, Any]:
+    """``{"lead_s", "late_s"}`` of the warning (level >= ``min_level``) for an event at ``t_event``.
+
+    >>> t = np.arange(10) * 0.5
+    >>> lead_time(t, np.array([0, 0, 1, 1, 2, 2, 2, 0, 0, 0]), 2.5, 1)
+    {'lead_s': 1.5, 'late_s': None}
+    >>> lead_time(t, np.array([0, 0, 1, 1, 2, 2, 2, 0, 0, 0]), 1.0, 2)
+    {'lead_s': None, 'late_s': 1.0}
+    """
+    on = np.asarray(level) >= min_level
+    k = int(np.searchsorted(t, t_event))
+    k = min(k, len(t) - 1)
+    if on[k]:
+        j = k
+        while j > 0 and on[j - 1]:
+            j -= 1
+        return {"lead_s": float(t_event - t[j]), "late_s": None}
+    after = np.flatnonzero(on[k:])
+    return {"lead_s": None, "late_s": float(t[k + after[0]] - t_event) if after.size else None}
+
+
+def episodes(level: np.ndarray, min_level: int) -> int:
+    """Number of warning episodes at level >= ``min_level`` (rises from below).
+
+    >>> episodes(np.array([0, 1, 1, 0, 2, 1, 0]), 1), episodes(np.array([0, 1, 1, 0, 2, 1, 0]), 2)
+    (2, 1)
+    """
+    on = (np.asarray(level) >= min_level).astype(int)
+    return int(np.sum(np.diff(np.concatenate(([0], on))) == 1))
+
+
+@dataclass(eq=False)
+class CaseResult:
+    """A ridden and assessed evaluation case."""
+
+    case: RideCase
+    ride: Any  #: ptw_env.ride.RideResult (log with a ``kappa`` column added)
+    run: Any  #: assist.risk.offline.RiskRun
+    mu_true: np.ndarray
+    utilisation: np.ndarray  #: true |F_ss|/Fmax (K, 2)
+    events: np.ndarray  #: saturation onsets [s]
+
+    def summary(self, run=None) -> dict[str, Any]:
+        """Figures of the ride: events with lead times (caution, danger), false-alarm episodes,
+        peak true utilisation, friction estimate at the end and its truth (``run``: another
+        assessment of the same ride, e.g. :func:`assist.risk.offline.replay`)."""
+        run = self.run if run is None else run
+        t = run.t
+        lv = run.level_code
+        ev = []
+        for te in self.events:
+            ev.append({"t": float(te), "caution": lead_time(t, lv, te, 1), "danger": lead_time(t, lv, te, 2)})
+        return {
+            "kind": self.case.kind,
+            "seed": self.case.seed,
+            "notes": self.case.notes,
+            "duration_s": float(t[-1]),
+            "fell": bool(self.ride.fell),
+            "max_true_utilisation": [float(v) for v in self.utilisation.max(axis=0)],
+            "events": ev,
+            "caution_episodes": episodes(lv, 1),
+            "danger_episodes": episodes(lv, 2),
+            "mu_hat_final": float(run.assessments[-1].mu_hat),
+            "mu_true_final": float(self.mu_true[-1]),
+        }
+
+
+def truth_from_log(log) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(mu_true, true_utilisation, saturation_events)`` of a simulated log, or None.
+
+    Needs the truth columns ``x_phi`` ... ``x_Fyr`` and ``vx_true`` (written by
+    :func:`ptw_env.ride.ride_scenario`); the friction comes from a ``mu_true``
+    column, else from the sidecar's ``truth.friction`` schedule, else it is the
+    reference 0.9; the dynamic effects from the sidecar's ``truth.causes``.
+    """
+    from ptw_env.vehicle import STATE_NAMES
+
+    c = log.columns
+    names = [f"x_{n}" for n in STATE_NAMES]
+    if not all(n in c for n in names) or "vx_true" not in c:
+        return None
+    X = np.column_stack([np.asarray(c[n], dtype=float) for n in names])
+    vx = np.asarray(c["vx_true"], dtype=float)
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(vx)) and np.all(vx > 0)):
+        return None
+    truth = (log.meta or {}).get("truth", {}) if isinstance(log.meta, dict) else {}
+    try:
+        effects = as_effects(truth.get("causes")) if truth.get("causes") else as_effects(None)
+        fj = truth.get("friction")
+        sched = (FrictionSchedule(tuple(map(tuple, fj["points"])), by=fj.get("by", "distance"),
+                                  mu_ref=fj.get("mu_ref", 0.9)) if isinstance(fj, dict) else None)
+    except (ValueError, KeyError, TypeError):
+        return None
+    t = np.asarray(log.t, dtype=float)
+    if "mu_true" in c and np.all(np.isfinite(c["mu_true"])):
+        mu = np.asarray(c["mu_true"], dtype=float)
+    elif sched is not None:
+        s = np.concatenate(([0.0], np.cumsum(vx[:-1] * np.diff(t))))
+        mu = sched.along(t, s)
+    else:
+        mu = np.full(len(t), 0.9)
+    sched = sched or FrictionSchedule.constant(0.9)
+    util = true_utilisation(X, vx, mu, sched, effects)
+    return mu, util, saturation_events(t, util) if effects.has("tire_saturation") else np.array([])
+
+
+def estimator_figures(res: CaseResult, rel_tol: float = 0.2, excitation_g: float = 0.1) -> dict[str, Any]:
+    """How the friction estimate behaves against the truth on one ride.
+
+    * ``rel_error``: ``mu_hat / mu_true - 1`` over the *informed* samples at least 3 s after any
+      change of the true friction (median, 5th and 95th percentiles);
+    * ``within_2sigma``: fraction of those samples with ``|mu_hat - mu_true| <= 2 mu_std``;
+    * for a friction drop (wet patch): ``excitation_s``, the time from the drop to the first true
+      axle force ``|F_k| >= excitation_g Fz_k`` on the new surface; ``detect_s``, from that instant
+      to ``mu_hat`` within ``rel_tol`` of the new friction; ``before_saturation_s``, from detection
+      to the next saturation event (NaN if none).
+    """
+    t = res.run.t
+    mu_hat = res.run.series("mu_hat")
+    sd = res.run.series("mu_std")
+    informed = res.run.series("friction_informed").astype(bool)
+    mu = res.mu_true
+    change = np.flatnonzero(np.abs(np.diff(mu)) > 1e-9)
+    settled = np.ones(len(t), dtype=bool)
+    for k in change:
+        settled &= ~((t >= t[k]) & (t < t[k] + 3.0))
+    m = informed & settled
+    out: dict[str, Any] = {"informed_fraction": float(informed.mean())}
+    if m.any():
+        e = mu_hat[m] / mu[m] - 1.0
+        out["rel_error"] = {"median": float(np.median(e)), "p5": float(np.percentile(e, 5)),
+                            "p95": float(np.percentile(e, 95))}
+        out["within_2sigma"] = float(np.mean(np.abs(mu_hat[m] - mu[m]) <= 2 * sd[m]))
+    if change.size and mu[-1] < mu[0]:
+        k0 = int(change[0]) + 1
+        fz = np.array([REFERENCE_SCOOTER.tires.Fzf, REFERENCE_SCOOTER.tires.Fzr])
+        load = np.max(np.abs(res.ride.states[:, 6:8]) / fz, axis=1)
+        exc = np.flatnonzero((np.arange(len(t)) >= k0) & (load >= excitation_g))
+        out["excitation_s"] = float(t[exc[0]] - t[k0]) if exc.size else None
+        if exc.size:
+            det = np.flatnonzero((np.arange(len(t)) >= exc[0]) & (mu_hat <= mu[-1] * (1 + rel_tol)))
+            out["detect_s"] = float(t[det[0]] - t[exc[0]]) if det.size else None
+            nxt = res.events[res.events >= t[exc[0]]]
+            out["before_saturation_s"] = (float(nxt[0] - t[det[0]]) if det.size and nxt.size else None)
+    return out
+
+
+def run_case(case: RideCase, pipeline=None) -> CaseResult:
+    """Ride ``case`` (:func:`ptw_env.ride.ride_scenario` with the friction schedule), add the route's
+    curvature to the log as ``kappa`` (the map), assess it (:func:`assist.risk.offline.assess_log`)
+    and compute the truth."""
+    from ptw_env.ride import ride_scenario
+
+    from .offline import assess_log
+
+    ride = ride_scenario(case.scenario, effects=case.effects, noise_pct=case.noise_pct, seed=case.seed,
+                         friction=case.friction, scenario_seed=case.seed)
+    c = ride.log.columns
+    prof = case.scenario.profile(0.01, seed=case.seed)
+    c["kappa"] = np.asarray(prof.kappa[: len(ride.log.t)], dtype=float)
+    run = assess_log(ride.log, pipeline=pipeline, noise_pct=case.noise_pct)
+    mu = np.asarray(c["mu_true"], dtype=float)
+    util = true_utilisation(ride.states, c["vx_true"], mu, case.friction, case.effects)
+    return CaseResult(case=case, ride=ride, run=run, mu_true=mu, utilisation=util,
+                      events=saturation_events(ride.log.t, util))
+
+
+__all__ = [
+    "CaseResult",
+    "CurveTooFast",
+    "EVAL_EFFECTS",
+    "KINDS",
+    "RideCase",
+    "SATURATION_FRACTION",
+    "episodes",
+    "estimator_figures",
+    "lead_time",
+    "make_case",
+    "run_case",
+    "truth_from_log",
+    "saturation_events",
+    "true_utilisation",
+]

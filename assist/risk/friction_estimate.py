@@ -1,0 +1,257 @@
+"""Available road friction ``mu_hat`` from a tire-stiffness estimate, with an honest uncertainty.
+
+Mapping (effects.md: "Road friction (mu) scales both [stiffnesses] equally")
+-------------------------------------------------------------------------
+The nominal stiffnesses ``C_0`` of model.md are those of the reference road,
+dry asphalt of friction ``mu_ref`` = :data:`ptw_env.friction.REFERENCE_FRICTION`
+= 0.9 (the simulator's :class:`~ptw_env.friction.FrictionSchedule` scales the
+stiffness and ``mu_peak`` by ``mu / mu_ref`` with the same constant, so the
+tanh tire curve as a whole scales with ``mu``). With the four stiffness
+ratios ``r_j = C_hat_j / C_0j`` and their standard deviations ``s_j =
+std(C_hat_j) / C_0j`` (1 sigma, from the estimator):
+
+.. math::
+
+    \\hat r = \\frac{\\sum_j w_j r_j}{\\sum_j w_j},\\quad w_j = s_j^{-2},\\qquad
+    \\sigma_r^2 = \\frac{1}{\\sum_j w_j} + \\frac{\\sum_j w_j (r_j - \\hat r)^2}{\\sum_j w_j},\\qquad
+    \\hat\\mu_{raw} = \\mu_{ref}\\,\\hat r,\\ \\sigma_{raw} = \\mu_{ref}\\,\\sigma_r.
+
+The second term of ``sigma_r^2`` is the disagreement between the four
+ratios, which a pure friction change would make equal: it carries the
+estimator's bias into the uncertainty instead of hiding it.
+
+Lateral excitation (no excitation: say so, do not guess)
+-------------------------------------------------------
+Stiffness is only observable while the tires carry lateral force. The
+excitation is ``E = max(|LP(a_y)|, |LP(g F_f / Fz_f)|, |LP(g F_r / Fz_r)|)``:
+the measured lateral acceleration and, when the estimator gives them, the
+estimated axle forces over the static axle loads (the front force of a
+counter-steer comes before the net ``a_y``), each through a first-order
+low-pass of time constant ``excitation_tau_s`` (0.3 s; it takes the
+sensor noise, 0.25 m/s^2 at 5 %, down to ~0.05 m/s^2). The raw estimate is
+*used* only while ``E >= excitation_min`` (1.0 m/s^2, about 0.1 g, a fifth of
+normal-pace cornering) and ``sigma_r <= max_informed_std`` (0.25); then
+``mu_hat = mu_raw``, ``sigma = sigma_raw``. Otherwise the status is "not enough
+lateral excitation", ``mu_hat`` keeps the last informed value (the prior
+``prior_mu`` = 0.9 +- ``prior_std`` before any) and its uncertainty grows as a
+random walk, ``sigma^2 = sigma_last^2 + q^2 (t - t_last)`` (road friction can
+change while nothing is measured; ``q`` = ``walk`` = 0.02 /sqrt(s), the
+adaptive observer's own stiffness random walk times ``mu_ref``).
+
+A stiffness estimate also falls when the tires approach saturation (the
+linear model sees the secant of the tanh curve, ``tanh(a)/a``: -11 % at 56 %
+of the grip): ``mu_hat`` is then low, which errs on the safe side.
+
+Examples
+--------
+>>> import numpy as np
+>>> fe = FrictionEstimate()
+>>> c0 = np.array([22486.0, 1063.8, 20178.0, 644.36])
+>>> st = fe.update(0.0, 0.5 * c0, 0.05 * c0, ay=0.0)        # straight: not informed
+>>> st.informed, st.mu_hat, st.status
+(False, 0.9, 'not enough lateral excitation (|a_y| 0.00 m/s^2 < 1.00)')
+>>> for k in range(100):
+...     st = fe.update(0.01 * k, 0.5 * c0, 0.05 * c0, ay=3.0)  # cornering: informed
+>>> st.informed, round(st.mu_hat, 3), round(st.mu_std, 4)
+(True, 0.45, 0.0225)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ptw_env.friction import REFERENCE_FRICTION
+from ptw_env.vehicle import REFERENCE_SCOOTER
+
+_TP = REFERENCE_SCOOTER.tires
+#: Nominal stiffnesses ``C_0`` [N/rad] (model.md, derived tire parameters), order C_alpha_f, C_gamma_f, C_alpha_r, C_gamma_r.
+NOMINAL_STIFFNESS = np.array([_TP.C_alpha_f0, _TP.C_gamma_f0, _TP.C_alpha_r0, _TP.C_gamma_r0])
+
+
+class FrictionEstimateError(ValueError):
+    """A stiffness, standard deviation or option the friction estimate cannot use."""
+
+
+@dataclass(frozen=True)
+class FrictionConfig:
+    """Options of :class:`FrictionEstimate` (module docstring for the equations).
+
+    Attributes
+    ----------
+    mu_ref : float
+        Friction of the road the nominal stiffness refers to (default 0.9, dry asphalt).
+    prior_mu, prior_std : float
+        Friction assumed before the first informed estimate, and its 1-sigma (default 0.9 +- 0.2).
+    excitation_min : float
+        Lateral excitation ``E`` (module docstring) above which the estimate is used [m/s^2] (default 1.0).
+    excitation_tau_s : float
+        Time constant of the excitation low-pass [s] (default 0.3).
+    max_informed_std : float
+        An estimate whose relative 1-sigma ``sigma_r`` is above this [-] is not used (default 0.25).
+    walk : float
+        Random-walk intensity of the friction while uninformed [1/sqrt(s)] (default 0.02).
+    fallback_std : float
+        Relative stiffness std used when the estimator reports none (NaN) [-] (default 0.15).
+    """
+
+    mu_ref: float = REFERENCE_FRICTION
+    prior_mu: float = REFERENCE_FRICTION
+    prior_std: float = 0.2
+    excitation_min: float = 1.0
+    excitation_tau_s: float = 0.3
+    max_informed_std: float = 0.25
+    walk: float = 0.02
+    fallback_std: float = 0.15
+
+    def __post_init__(self) -> None:
+        for name in ("mu_ref", "prior_mu", "prior_std", "excitation_tau_s", "max_informed_std", "fallback_std"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise FrictionEstimateError(f"FrictionConfig.{name} must be a positive number, got {v!r}")
+        for name in ("excitation_min", "walk"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+                raise FrictionEstimateError(f"FrictionConfig.{name} must be a number >= 0, got {v!r}")
+
+
+@dataclass(frozen=True)
+class FrictionState:
+    """The friction estimate after one sample.
+
+    Attributes
+    ----------
+    t : float
+        Time [s].
+    mu_hat, mu_std : float
+        Available friction and its 1-sigma [-].
+    mu_raw, raw_std : float
+        What the stiffness estimate says right now (used or not) [-].
+    informed : bool
+        True when this sample's stiffness estimate was used.
+    excitation : float
+        ``|LP(a_y)|`` [m/s^2].
+    since_informed_s : float
+        Time since the last informed sample [s] (``inf`` before any).
+    status : str
+        Why the estimate is (not) used, for the warning's reason.
+    """
+
+    t: float
+    mu_hat: float
+    mu_std: float
+    mu_raw: float
+    raw_std: float
+    informed: bool
+    excitation: float
+    since_informed_s: float
+    status: str
+
+
+def stiffness_to_friction(stiffness, stiffness_std, mu_ref: float = REFERENCE_FRICTION,
+                          nominal=NOMINAL_STIFFNESS, fallback_std: float = 0.15) -> tuple[float, float]:
+    """``(mu_raw, sigma_raw)`` from a stiffness estimate [N/rad] and its 1-sigma [N/rad] (module docstring).
+
+    Examples
+    --------
+    >>> c0 = NOMINAL_STIFFNESS
+    >>> mu, s = stiffness_to_friction(0.5 * c0, 0.1 * c0)
+    >>> round(mu, 3), round(s, 4)
+    (0.45, 0.045)
+    """
+    c = np.asarray(stiffness, dtype=float)
+    sd = np.asarray(stiffness_std, dtype=float)
+    c0 = np.asarray(nominal, dtype=float)
+    if c.shape != c0.shape or sd.shape != c0.shape:
+        raise FrictionEstimateError(f"stiffness and stiffness_std must hold {c0.size} values "
+                                    f"(C_alpha_f, C_gamma_f, C_alpha_r, C_gamma_r), got shapes {c.shape}, {sd.shape}")
+    if not np.all(np.isfinite(c)) or np.any(c <= 0):
+        raise FrictionEstimateError(f"stiffness must be positive and finite [N/rad], got {c.tolist()}")
+    r = c / c0
+    s = np.where(np.isfinite(sd) & (sd > 0), sd / c0, fallback_std)
+    w = 1.0 / s**2
+    W = float(w.sum())
+    rhat = float((w * r).sum() / W)
+    var = 1.0 / W + float((w * (r - rhat) ** 2).sum() / W)
+    return mu_ref * rhat, mu_ref * math.sqrt(var)
+
+
+class FrictionEstimate:
+    """Available friction from a stream of stiffness estimates, gated by lateral excitation.
+
+    Parameters
+    ----------
+    config : FrictionConfig, optional
+
+    Notes
+    -----
+    Feed :meth:`update` once per sample; :meth:`reset` starts again from the prior.
+    """
+
+    def __init__(self, config: FrictionConfig | None = None) -> None:
+        self.config = FrictionConfig() if config is None else config
+        if not isinstance(self.config, FrictionConfig):
+            raise FrictionEstimateError(f"config must be a FrictionConfig, got {type(config).__name__}")
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to the prior, no excitation history."""
+        c = self.config
+        self._mu = c.prior_mu
+        self._var_last = c.prior_std**2
+        self._t_last: float | None = None
+        self._ay_f = np.zeros(3)
+        self._t_prev: float | None = None
+        self.state: FrictionState | None = None
+
+    def update(self, t: float, stiffness, stiffness_std, ay: float, axle_accel=None) -> FrictionState:
+        """Take one sample: time [s], stiffness estimate and its 1-sigma [N/rad], measured ``a_y`` [m/s^2]
+        (NaN: a dropout, the excitation filter holds) and optionally the axle forces over the axle
+        loads, ``g F_k / Fz_k`` [m/s^2] (the excitation is then the largest of the three, filtered)."""
+        c = self.config
+        t = float(t)
+        if not math.isfinite(t):
+            raise FrictionEstimateError(f"t must be a finite time in seconds, got {t!r}")
+        if self._t_prev is not None and t < self._t_prev:
+            raise FrictionEstimateError(f"time went backwards: {t} s after {self._t_prev} s")
+        dt = 0.0 if self._t_prev is None else t - self._t_prev
+        self._t_prev = t
+        sig = np.array([float(ay), math.nan, math.nan])
+        if axle_accel is not None:
+            sig[1:] = np.asarray(axle_accel, dtype=float).ravel()[:2]
+        a = 1.0 if self.state is None else 1.0 - math.exp(-dt / c.excitation_tau_s)
+        ok = np.isfinite(sig)
+        self._ay_f[ok] += a * (sig[ok] - self._ay_f[ok])
+        exc = float(np.max(np.abs(self._ay_f)))
+        mu_raw, raw_std = stiffness_to_friction(stiffness, stiffness_std, c.mu_ref, fallback_std=c.fallback_std)
+        if exc >= c.excitation_min and raw_std <= c.max_informed_std * c.mu_ref:
+            self._mu, self._var_last, self._t_last = mu_raw, raw_std**2, t
+            informed, since, std = True, 0.0, raw_std
+            status = f"informed (|a_y| {exc:.2f} m/s^2)"
+        else:
+            informed = False
+            if self._t_last is None:  # the prior, until the first informed sample
+                since, std = math.inf, math.sqrt(self._var_last)
+            else:
+                since = t - self._t_last
+                std = math.sqrt(self._var_last + c.walk**2 * since)
+            if exc < c.excitation_min:
+                status = f"not enough lateral excitation (|a_y| {exc:.2f} m/s^2 < {c.excitation_min:.2f})"
+            else:
+                status = f"stiffness estimate too uncertain (+-{raw_std:.2f} in mu)"
+        self.state = FrictionState(t=t, mu_hat=float(self._mu), mu_std=float(std), mu_raw=float(mu_raw),
+                                   raw_std=float(raw_std), informed=informed, excitation=float(exc),
+                                   since_informed_s=float(since), status=status)
+        return self.state
+
+
+__all__ = [
+    "FrictionConfig",
+    "FrictionEstimate",
+    "FrictionEstimateError",
+    "FrictionState",
+    "NOMINAL_STIFFNESS",
+    "stiffness_to_friction",
+]

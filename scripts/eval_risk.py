@@ -1,0 +1,239 @@
+"""Evaluate the risk warning (issue 5) on seeded rides with tire saturation on.
+
+Ride types (:mod:`assist.risk.evaluation`): ``dry`` (urban at 0.5 g, friction
+0.9: no false alarm wanted), ``wet`` (the same ride onto a wet patch, friction
+0.9 -> 0.45 at mid-ride distance, unchanged pace), ``dry_long`` / ``wet_long``
+(the same with 2.5 s curve entries), ``too_fast`` (a damp road, warm-up
+curves, then a curve entered at 1.2-1.35 times the speed the friction
+allows). Every ride: 5 % sensor noise, its own seed for route, sensors and
+rider.
+
+For every saturation event (``|F_ss| >= 0.95 Fmax`` on either axle, from the
+true state) the lead time of the warning active at that instant is
+measured, for caution (level >= caution) and for danger separately. On the
+dry rides the warning episodes are false alarms (the script checks that the
+dry rides never saturate and reports their peak true utilisation).
+
+Writes ``results.json``, ``results.md`` (the table) and ``timeline_<type>.png``
+(one seed per type) into ``--out``.
+
+Usage::
+
+    python scripts/eval_risk.py --seeds 20 --workers 2   # writes out/risk/
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from assist.risk.evaluation import KINDS, estimator_figures, make_case, run_case
+from assist.risk.offline import plot_risk, replay
+
+#: Monitor variants compared on the same estimator outputs: the default (caution also when the grip is
+#: not confirmed at 2 sigma) and one that acts on the estimate alone.
+VARIANTS = {"default": {}, "estimate_only": {"confirm_sigmas": 0.0}}
+
+_PIPE = None
+
+
+def _one(args: tuple[str, int, str | None]) -> dict:
+    global _PIPE
+    kind, seed, fig = args
+    from assist.risk.pipeline import RiskPipeline, default_estimator
+
+    if _PIPE is None:
+        _PIPE = RiskPipeline(default_estimator(5.0))
+    from assist.risk.monitor import RiskConfig, RiskMonitor
+
+    t0 = time.perf_counter()
+    res = run_case(make_case(kind, seed), pipeline=_PIPE)
+    out = {}
+    for name, over in VARIANTS.items():
+        run = res.run if not over else replay(res.run, RiskMonitor(RiskConfig(**over)))
+        s = res.summary(run)
+        w = run.warnings()
+        s["warning_reasons"] = [e["reason"] for e in w][:6]
+        s["unconfirmed_cautions"] = sum(1 for e in w if "not confirmed" in e["reason"])
+        out[name] = s
+    s = out["default"]
+    s["variants"] = {k: v for k, v in out.items() if k != "default"}
+    s["estimator"] = estimator_figures(res)
+    s["seconds"] = round(time.perf_counter() - t0, 2)
+    if fig:
+        plot_risk(res.run, fig, mu_true=res.mu_true, true_utilisation=res.utilisation, saturation_t=res.events,
+                  title=f"risk warning, {kind} ride, seed {seed}")
+        s["figure"] = fig
+    return s
+
+
+def _stats(x: list[float]) -> dict:
+    if not x:
+        return {"n": 0, "min": None, "median": None, "max": None}
+    a = np.asarray(x, dtype=float)
+    return {"n": int(a.size), "min": round(float(a.min()), 3), "median": round(float(np.median(a)), 3),
+            "max": round(float(a.max()), 3)}
+
+
+def summarise(rides: list[dict], variant: str = "default") -> dict:
+    """Per ride type: rides, saturation events, detections and lead times, false alarms."""
+    if variant != "default":
+        rides = [{**r["variants"][variant], "kind": r["kind"]} for r in rides]
+    out: dict = {}
+    for kind in KINDS:
+        rs = [r for r in rides if r["kind"] == kind]
+        if not rs:
+            continue
+        ev = [e for r in rs for e in r["events"]]
+        first = [r["events"][0] for r in rs if r["events"]]
+        d: dict = {"rides": len(rs), "rides_with_saturation": sum(1 for r in rs if r["events"]),
+                   "saturation_events": len(ev), "fell": sum(r["fell"] for r in rs),
+                   "peak_true_utilisation_max": round(max(max(r["max_true_utilisation"]) for r in rs), 3),
+                   "peak_true_utilisation_median": round(float(np.median([max(r["max_true_utilisation"]) for r in rs])), 3)}
+        for lev in ("caution", "danger"):
+            leads = [e[lev]["lead_s"] for e in ev if e[lev]["lead_s"] is not None]
+            d[lev] = {
+                "detected": len(leads),
+                "detected_0p5s": sum(1 for x in leads if x >= 0.5),
+                "missed": len(ev) - len(leads),
+                "lead_s": _stats(leads),
+                "late_s_of_missed": _stats([e[lev]["late_s"] for e in ev if e[lev]["lead_s"] is None
+                                            and e[lev]["late_s"] is not None]),
+                "first_event_lead_s": _stats([e[lev]["lead_s"] for e in first if e[lev]["lead_s"] is not None]),
+            }
+        minutes = sum(r["duration_s"] for r in rs) / 60.0
+        d["false_alarms"] = None
+        if kind.startswith("dry"):
+            d["false_alarms"] = {
+                "rides_with_caution": sum(1 for r in rs if r["caution_episodes"] > 0),
+                "rides_with_danger": sum(1 for r in rs if r["danger_episodes"] > 0),
+                "caution_episodes": sum(r["caution_episodes"] for r in rs),
+                "caution_episodes_unconfirmed_grip": sum(r["unconfirmed_cautions"] for r in rs),
+                "danger_episodes": sum(r["danger_episodes"] for r in rs),
+                "caution_per_min": round(sum(r["caution_episodes"] for r in rs) / minutes, 4),
+                "danger_per_min": round(sum(r["danger_episodes"] for r in rs) / minutes, 4),
+                "minutes": round(minutes, 2),
+            }
+        upright = [r["mu_hat_final"] for r in rs if not r["fell"]]
+        d["mu_hat_final_median_upright"] = round(float(np.median(upright)), 3) if upright else None
+        out[kind] = d
+    return out
+
+
+def estimator_summary(rides: list[dict]) -> dict:
+    """Bias, calibration and reaction of the friction estimate, per ride type."""
+    out: dict = {}
+    for kind in KINDS:
+        rs = [r["estimator"] for r in rides if r["kind"] == kind]
+        if not rs:
+            continue
+        med = [r["rel_error"]["median"] for r in rs if "rel_error" in r]
+        d = {"rides": len(rs), "rel_error_median": _stats(med),
+             "within_2sigma_median": round(float(np.median([r["within_2sigma"] for r in rs if "within_2sigma" in r])), 3)
+             if med else None,
+             "informed_fraction_median": round(float(np.median([r["informed_fraction"] for r in rs])), 3)}
+        if any("excitation_s" in r for r in rs):
+            d["excitation_s"] = _stats([r["excitation_s"] for r in rs if r.get("excitation_s") is not None])
+            d["detect_s"] = _stats([r["detect_s"] for r in rs if r.get("detect_s") is not None])
+            d["not_detected"] = sum(1 for r in rs if r.get("excitation_s") is not None and r.get("detect_s") is None)
+            d["detected_before_saturation_s"] = _stats([r["before_saturation_s"] for r in rs
+                                                        if r.get("before_saturation_s") is not None])
+        out[kind] = d
+    return out
+
+
+def estimator_markdown(est: dict) -> str:
+    """Table of :func:`estimator_summary`."""
+    lines = ["| ride | mu_hat/mu_true - 1 (median of rides: min / median / max) | within 2 sigma | informed "
+             "| patch: time to excitation [s] | excitation to mu_hat within 20 % [s] | detection to saturation [s] |",
+             "|---|---|---|---|---|---|---|"]
+
+    def mm(s):
+        return "-" if not s or s["n"] == 0 else f"{s['min']:.2f} / {s['median']:.2f} / {s['max']:.2f}"
+
+    for kind, d in est.items():
+        lines.append(f"| {kind} | {mm(d['rel_error_median'])} | {d['within_2sigma_median']} | "
+                     f"{d['informed_fraction_median']} | {mm(d.get('excitation_s'))} | {mm(d.get('detect_s'))} "
+                     f"{'' if not d.get('not_detected') else '(' + str(d['not_detected']) + ' never)'} | "
+                     f"{mm(d.get('detected_before_saturation_s'))} |")
+    return "\n".join(lines) + "\n"
+
+
+def markdown(summary: dict, n: int) -> str:
+    """The results table."""
+    lines = [
+        f"Risk warning, {n} seeded rides per type, 5 % sensor noise, tire_saturation on "
+        "(saturation: |F_ss| >= 0.95 Fmax on either axle, from the simulator's true state). "
+        "Lead = saturation instant - onset of the warning active then; target >= 0.5 s.",
+        "",
+        "| ride | rides / saturating | events | caution: warned (>= 0.5 s) | caution lead min / median [s] "
+        "| danger: warned (>= 0.5 s) | danger lead min / median [s] | false alarms (rides with caution / danger) "
+        "| peak true util. (median / max) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for kind, d in summary.items():
+        c, g = d["caution"], d["danger"]
+        fa = d["false_alarms"]
+        fa_s = (f"{fa['rides_with_caution']}/{d['rides']} ({fa['caution_episodes_unconfirmed_grip']} of "
+                f"{fa['caution_episodes']} episodes 'grip not confirmed') / {fa['rides_with_danger']}/{d['rides']}"
+                if fa else "-")
+
+        def mm(s):
+            return "-" if s["n"] == 0 else f"{s['min']:.2f} / {s['median']:.2f}"
+
+        ev = d["saturation_events"]
+        lines.append(
+            f"| {kind} | {d['rides']} / {d['rides_with_saturation']} | {ev} | "
+            f"{c['detected']}/{ev} ({c['detected_0p5s']}) | {mm(c['lead_s'])} | "
+            f"{g['detected']}/{ev} ({g['detected_0p5s']}) | {mm(g['lead_s'])} | {fa_s} | "
+            f"{d['peak_true_utilisation_median']:.2f} / {d['peak_true_utilisation_max']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                epilog="example: python scripts/eval_risk.py --seeds 20 --workers 2")
+    p.add_argument("--seeds", type=int, default=20, help="seeds per ride type (default 20)")
+    p.add_argument("--first-seed", type=int, default=0)
+    p.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated ride types (default {','.join(KINDS)})")
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--out", default="out/risk", help="output directory (default out/risk/)")
+    p.add_argument("--figure-seed", type=int, default=None, help="seed of the timeline figures (default: the first)")
+    a = p.parse_args(argv)
+    kinds = [k for k in a.kinds.split(",") if k]
+    bad = [k for k in kinds if k not in KINDS]
+    if bad or a.seeds < 1:
+        print(f"eval_risk: error: unknown ride type(s) {bad} (known: {', '.join(KINDS)}) or --seeds < 1", file=sys.stderr)
+        return 2
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    fseed = a.first_seed if a.figure_seed is None else a.figure_seed
+    jobs = [(k, s, str(out / f"timeline_{k}.png") if s == fseed else None)
+            for k in kinds for s in range(a.first_seed, a.first_seed + a.seeds)]
+    t0 = time.perf_counter()
+    if a.workers > 1:
+        with ProcessPoolExecutor(a.workers) as ex:
+            rides = list(ex.map(_one, jobs))
+    else:
+        rides = [_one(j) for j in jobs]
+    summary = {v: summarise(rides, v) for v in VARIANTS}
+    est = estimator_summary(rides)
+    res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "variants": VARIANTS, "summary": summary,
+           "estimator": est, "rides": rides, "seconds": round(time.perf_counter() - t0, 1)}
+    (out / "results.json").write_text(json.dumps(res, indent=1, allow_nan=False, default=float) + "\n")
+    md = "\n".join(f"### monitor: {v} {VARIANTS[v] or '(defaults)'}\n\n" + markdown(summary[v], a.seeds)
+                   for v in VARIANTS) + "\n### friction estimate vs truth\n\n" + estimator_markdown(est)
+    (out / "results.md").write_text(md)
+    print(md)
+    print(f"{len(rides)} rides in {res['seconds']} s; results in {out}/")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,298 @@
+"""Risk warning (assist.risk): friction mapping, excitation, formulas, hysteresis, wrapper, CLI.
+
+Truth comes from the simulator wherever there is one: the friction schedule's
+stiffness scaling, the constant-radius ride that loses grip at the safe speed,
+the straight run of a ride, the true state the wrapper must not read.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from assist.risk import (FrictionConfig, FrictionEstimate, PathAhead, RiskConfig, RiskMonitor, RiskPipeline,
+                         RiskWarningWrapper, assess_log, safe_curve_speed, safe_lean_angle, stiffness_to_friction)
+from assist.risk.evaluation import saturation_events, true_utilisation
+from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0
+from assist.risk.offline import replay
+from assist.risk.pipeline import default_estimator
+from ptw_env.env import PTWRollEnv
+from ptw_env.friction import REFERENCE_FRICTION, FrictionSchedule
+from ptw_env.logs import write_log
+from ptw_env.ride import ride_scenario
+from ptw_env.scenarios import make_scenario
+from ptw_env.vehicle import G
+
+SAT = "tire_saturation:mu_peak=0.9"
+
+
+@pytest.fixture(scope="module")
+def estimator():
+    return default_estimator(5.0)
+
+
+# ------------------------------------------------------------------ friction from stiffness
+@pytest.mark.parametrize("mu", [0.3, 0.45, 0.9, 1.1])
+def test_mu_hat_inverts_the_simulators_friction_scaling(mu):
+    """The stiffness of the simulator's plant on a road of friction mu maps back to mu."""
+    e = FrictionSchedule.constant(mu).effects_at(mu, SAT)
+    stiff = C0 * np.array([e.value("tire_stiffness", "front_scale")] * 2 + [e.value("tire_stiffness", "rear_scale")] * 2)
+    m, s = stiffness_to_friction(stiff, 0.1 * C0)
+    assert m == pytest.approx(mu, rel=1e-12)
+    assert s == pytest.approx(REFERENCE_FRICTION * 0.05, rel=1e-12)  # four equal, agreeing ratios: 0.1/sqrt(4)
+
+
+def test_mu_hat_weights_by_precision_and_counts_disagreement():
+    stiff = C0 * np.array([0.5, 1.0, 0.5, 1.0])
+    std = C0 * np.array([0.01, 1.0, 0.01, 1.0])  # the alpha stiffnesses are far better known
+    m, s = stiffness_to_friction(stiff, std)
+    assert m == pytest.approx(0.9 * 0.5, abs=0.01)
+    agree, s_agree = stiffness_to_friction(C0 * 0.5, std)
+    assert s > s_agree  # disagreeing ratios widen the uncertainty
+
+
+@pytest.mark.parametrize("bad", [np.ones(3), np.array([1.0, np.nan, 1.0, 1.0]), -C0])
+def test_mu_hat_refuses_bad_stiffness(bad):
+    with pytest.raises(ValueError, match="stiffness"):
+        stiffness_to_friction(bad, C0)
+
+
+def test_uncertainty_grows_while_not_excited_and_the_estimate_is_held():
+    fe = FrictionEstimate(FrictionConfig(walk=0.05))
+    for k in range(100):  # informed cornering at scale 0.5
+        st = fe.update(0.01 * k, 0.5 * C0, 0.05 * C0, ay=3.0)
+    assert st.informed and st.mu_hat == pytest.approx(0.45)
+    s0 = st.mu_std
+    stds = []
+    for k in range(100, 1100):  # straight: the estimator drifts to nominal but must not be believed
+        drift = min(1.0, 0.5 + 0.5 * max(k - 150, 0) / 300)  # from 0.5 s on: the excitation filter has decayed
+        st = fe.update(0.01 * k, drift * C0, 0.05 * C0, ay=0.0)
+        if k >= 200:
+            stds.append(st.mu_std)
+    assert not st.informed and "not enough lateral excitation" in st.status
+    assert st.mu_hat == pytest.approx(0.45) and st.mu_raw == pytest.approx(0.9)
+    assert np.all(np.diff(stds) >= 0) and stds[-1] == pytest.approx(math.sqrt(s0**2 + 0.05**2 * st.since_informed_s))
+
+
+def test_straight_riding_says_not_enough_excitation_with_simulator_truth(estimator):
+    """A ride's straight run-in: no lateral force, so the prior is kept; the lane change then informs."""
+    sc = make_scenario("double_lane_change", run_in_s=6.0, duration_s=20.0)
+    ride = ride_scenario(sc, effects=SAT, noise_pct=5.0, seed=3, friction=FrictionSchedule.constant(0.6))
+    run = assess_log(ride.log, RiskPipeline(estimator))
+    t = run.t
+    straight = t < 5.5
+    true_ay = np.abs(ride.log.columns["x_Fyf"] + ride.log.columns["x_Fyr"]) / 303.31
+    assert true_ay[straight].max() < 0.5  # truth: really straight (rider noise only)
+    inf = run.series("friction_informed").astype(bool)
+    assert not inf[straight].any()
+    assert all("not enough lateral excitation" in a.friction_status for a, s in zip(run.assessments, straight) if s)
+    np.testing.assert_allclose(run.series("mu_hat")[straight], 0.9)  # the prior, not a guess
+    assert inf[~straight].any()  # the lane change does inform it
+    informed_mu = run.series("mu_hat")[inf]
+    assert abs(np.median(informed_mu) - 0.6) < 0.1  # to the true friction, far from the 0.9 prior
+
+
+# ------------------------------------------------------------------ formulas
+def test_safe_lean_and_speed_formulas():
+    assert safe_lean_angle(0.9) == pytest.approx(math.atan(0.9))
+    assert safe_lean_angle(0.5, 0.8) == pytest.approx(math.atan(0.4))
+    assert safe_curve_speed(0.45, 0.02) == pytest.approx(math.sqrt(0.45 * G / 0.02))
+    assert safe_curve_speed(0.45, -0.02, margin=0.8) == pytest.approx(math.sqrt(0.8 * 0.45 * G / 0.02))
+    assert safe_curve_speed(0.9, 0.0) == math.inf
+
+
+def test_grip_runs_out_at_the_safe_speed_in_the_simulator():
+    """Constant-radius turn, accelerating, road friction 0.5: the tires saturate (|F_ss| >= 0.95 Fmax)
+    near sqrt(mu g / kappa), and at a lean of at least atan(mu) (the point-mass formula is on the safe
+    side: this model's steady turn needs sin(phi) ~ a_y / (0.98 g) rather than tan(phi) = a_y / g)."""
+    mu, R = 0.5, 100.0
+    sc = make_scenario("constant_radius", radius_m=R, v_start_kmh=50, v_end_kmh=95, accel_mps2=1.0, duration_s=25)
+    sched = FrictionSchedule.constant(mu)
+    r = ride_scenario(sc, effects=SAT, noise_pct=0.0, seed=0, friction=sched, rider_noise_nm=0.0)
+    c = r.log.columns
+    ev = saturation_events(r.log.t, true_utilisation(r.states, c["vx_true"], c["mu_true"], sched))
+    assert ev.size >= 1
+    k = int(np.searchsorted(r.log.t, ev[0]))
+    v_safe = safe_curve_speed(mu, 1.0 / R)
+    assert 0.9 <= c["vx_true"][k] / v_safe <= 1.05
+    assert abs(r.states[k, 0]) >= safe_lean_angle(mu) - math.radians(0.5)
+    assert c["vx_true"][: k - 200].max() < v_safe  # no saturation while clearly below the safe speed
+
+
+# ------------------------------------------------------------------ hysteresis
+def _levels(u: np.ndarray, cfg: RiskConfig) -> np.ndarray:
+    mon = RiskMonitor(cfg)
+    fz = mon.fz
+    out = []
+    for k, uk in enumerate(u):  # informed, mu_hat = 0.45; front force sets the utilisation
+        a = mon.update(0.01 * k, 0.5 * C0, 0.02 * C0, vx=15.0, ay=3.0, forces=(uk * 0.45 * fz[0], 0.0))
+        out.append(a.level_code)
+    return np.array(out)
+
+
+def test_no_chattering_around_a_threshold():
+    t = np.arange(2000) * 0.01
+    rng = np.random.default_rng(0)
+    u = 0.8 + 0.05 * np.sin(2 * np.pi * 3.0 * t) + 0.01 * rng.normal(size=t.size)  # around caution_enter
+    u[:100] = 0.3  # starts safe
+    lv = _levels(u, RiskConfig())
+    assert np.count_nonzero(np.diff(lv)) == 1 and lv[-1] == 1  # enters once, stays (exit at 0.7)
+    plain = _levels(u, RiskConfig(caution_exit=0.8, danger_exit=1.0, min_dwell_s=0.0))
+    assert np.count_nonzero(np.diff(plain)) > 50  # without hysteresis it would chatter
+
+
+def test_dwell_limits_changes_when_the_signal_crosses_both_thresholds():
+    t = np.arange(3000) * 0.01
+    u = 0.75 + 0.15 * np.sign(np.sin(2 * np.pi * 4.0 * t))  # 0.6 <-> 0.9 at 4 Hz
+    lv = _levels(u, RiskConfig(min_dwell_s=1.0))
+    changes = np.flatnonzero(np.diff(lv))
+    drops = [k for k in changes if lv[k + 1] < lv[k]]
+    assert len(drops) <= 30  # at most one drop per second of the 30 s
+    enter = np.flatnonzero(np.diff(lv) > 0)
+    for k in drops:  # every drop comes at least the dwell time after the level was entered
+        assert (k - enter[enter <= k].max()) * 0.01 >= 1.0 - 1e-9
+
+
+def test_levels_and_reasons_follow_the_risk_index():
+    mon = RiskMonitor()
+    fz = mon.fz
+    path = PathAhead(np.array([0.0, 30.0, 60.0]), np.array([0.0, 1 / 40, 1 / 40]))
+    a = mon.update(0.0, 0.5 * C0, 0.02 * C0, vx=12.0, ay=2.0, forces=(0.2 * fz[0], 0.2 * fz[1]), path=path)
+    assert a.level == "safe" and a.reason.startswith("safe:")
+    a = mon.update(0.01, 0.5 * C0, 0.02 * C0, vx=12.0, ay=2.0, forces=(0.4 * fz[0], 0.2 * fz[1]), path=path)
+    assert a.level == "caution" and "front tire uses 89 %" in a.reason
+    fast = PathAhead(np.array([0.0, 5.0, 10.0]), np.array([0.0, 1 / 40, 1 / 40]))
+    a = mon.update(0.02, 0.5 * C0, 0.02 * C0, vx=16.0, ay=2.0, forces=(0.1 * fz[0], 0.1 * fz[1]), path=fast)
+    assert a.level == "danger" and "next curve (R 40 m" in a.reason and "safe speed" in a.reason
+    assert a.safe_speed_next_curve == pytest.approx(safe_curve_speed(0.45, 1 / 40, 0.8), rel=1e-3)
+
+
+def test_monitor_refuses_bad_input_with_a_clear_message():
+    mon = RiskMonitor()
+    with pytest.raises(ValueError, match="vx"):
+        mon.update(0.0, C0, C0 * 0.1, vx=-3.0, ay=0.0)
+    with pytest.raises(ValueError, match="forces"):
+        mon.update(0.0, C0, C0 * 0.1, vx=10.0, ay=0.0, forces=(1.0, np.nan))
+    with pytest.raises(ValueError, match="thresholds"):
+        RiskConfig(caution_enter=1.2)
+    with pytest.raises(ValueError, match="distance"):
+        PathAhead(np.array([5.0, 1.0]), np.zeros(2))
+
+
+# ------------------------------------------------------------------ wrapper
+class _Corrupt(gym.Wrapper):
+    """Replaces every piece of truth in info by garbage: the risk wrapper must not notice."""
+
+    def _bad(self, info):
+        info = dict(info)
+        info["state"] = np.full(8, 1e9)
+        info["measurement"] = np.full(7, -1e9)
+        info["friction"] = 5.0
+        return info
+
+    def reset(self, **kw):
+        obs, info = self.env.reset(**kw)
+        return obs, self._bad(info)
+
+    def step(self, a):
+        obs, r, te, tr, info = self.env.step(a)
+        return obs, r, te, tr, self._bad(info)
+
+
+def _wrapped(estimator, corrupt: bool):
+    base = PTWRollEnv("double_lane_change", noise_pct=5.0, effects=SAT, friction=FrictionSchedule.constant(0.6))
+    return RiskWarningWrapper(_Corrupt(base) if corrupt else base, RiskPipeline(estimator))
+
+
+def test_wrapper_uses_the_observation_only(estimator):
+    runs = []
+    for corrupt in (False, True):
+        env = _wrapped(estimator, corrupt)
+        env.reset(seed=4)
+        rng = np.random.default_rng(1)
+        seq = []
+        for k in range(300):
+            obs, _, te, tr, info = env.step(np.array([3.0 * math.sin(k / 15) + rng.normal()], dtype=np.float32))
+            seq.append((info["risk"]["mu_hat"], info["risk"]["utilisation_front"], info["risk"]["level"]))
+        runs.append(seq)
+    assert runs[0] == runs[1]
+
+
+def test_wrapper_adds_the_assessment_and_passes_check_env(estimator):
+    from gymnasium.utils.env_checker import check_env
+
+    env = _wrapped(estimator, False)
+    check_env(env, skip_render_check=True)
+    obs, info = env.reset(seed=0)
+    assert "risk" not in info
+    obs2, r, te, tr, info = env.step(np.zeros(1, dtype=np.float32))
+    keys = {"level", "reason", "mu_hat", "mu_std", "utilisation_front", "utilisation_rear", "utilisation_ahead",
+            "max_safe_lean", "safe_speed_next_curve", "friction_status"}
+    assert keys <= set(info["risk"]) and info["risk"]["level"] in ("safe", "caution", "danger")
+    json.dumps(info["risk"], allow_nan=False)
+    assert info["risk"]["t"] == 0.0 and env.last_assessment.t == 0.0
+
+
+# ------------------------------------------------------------------ offline + CLI
+@pytest.fixture(scope="module")
+def wet_log(tmp_path_factory):
+    """A short simulated ride onto a wet patch, with the route's curvature as the map."""
+    sc = make_scenario("slalom", duration_s=16.0, n_cones=3)
+    sched = FrictionSchedule.patch(start=60.0, mu_before=0.9, mu_patch=0.45, ramp=2.0)
+    r = ride_scenario(sc, effects=SAT, noise_pct=5.0, seed=2, friction=sched)
+    r.log.columns["kappa"] = np.asarray(sc.profile(0.01).kappa[: len(r.log.t)])
+    p = tmp_path_factory.mktemp("risk") / "wet.csv"
+    write_log(p, r.log, meta=r.log.meta)
+    return p
+
+
+def test_cli_json_holds_the_cli_md_keys(wet_log, tmp_path, capsys):
+    from ptw_env.cli import main
+
+    out = tmp_path / "risk.json"
+    fig = tmp_path / "risk.png"
+    assert main(["risk", str(wet_log), "--json", str(out), "--plot", str(fig)]) == 0
+    js = json.loads(out.read_text())
+    assert isinstance(js["mu_hat_final"], float) and isinstance(js["warnings"], list)
+    for w in js["warnings"]:
+        assert {"t", "level", "reason"} <= set(w) and w["level"] in ("caution", "danger") and w["reason"]
+    assert js["path_source"] == "kappa column"
+    assert js["truth"]["mu_final"] == pytest.approx(0.45)
+    assert fig.stat().st_size > 10_000
+    text = capsys.readouterr().out
+    assert "mu_hat" in text and "warning(s)" in text
+    # refuses to overwrite
+    assert main(["risk", str(wet_log), "--json", str(out)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("content, where", [
+    ("t,tau,vx,delta,delta_rate,yaw_rate,roll_rate\n0,0,10,0,0,0,0\n", "ay"),
+    ("t,tau,vx,delta,delta_rate,yaw_rate,roll_rate,ay\n" + "".join(
+        f"{k / 100},0,10,0,0,{'x' if k == 7 else 0},0,0\n" for k in range(200)), "line 9"),
+])
+def test_cli_bad_log_one_line_exit_2(tmp_path, capsys, content, where):
+    from ptw_env.cli import main
+
+    p = tmp_path / "bad.csv"
+    p.write_text(content)
+    assert main(["risk", str(p)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ptw-assist risk: error:") and where in err[0]
+
+
+def test_offline_replay_gives_the_same_assessments(wet_log, estimator):
+    from ptw_env.logs import read_log
+
+    run = assess_log(read_log(wet_log), RiskPipeline(estimator))
+    again = replay(run, RiskMonitor())
+    assert [a.level for a in again.assessments] == [a.level for a in run.assessments]
+    np.testing.assert_array_equal(again.series("risk_index"), run.series("risk_index"))
+    assert run.level_code.max() > 0
+    deaf = replay(run, RiskMonitor(RiskConfig(caution_enter=1e3, caution_exit=1e3, danger_enter=1e3,
+                                              danger_exit=1e3, confirm_sigmas=0.0)))
+    assert deaf.level_code.max() == 0  # the replay really uses the other monitor
