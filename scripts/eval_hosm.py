@@ -454,47 +454,43 @@ def main(argv=None) -> int:
 
     # 9. TS observer comparison ---------------------------------------------------
     if not args.no_ts:
-        try:
-            from assist.ts_design import design as ts_design
+        from assist.ts_design import design as ts_design
 
-            t0 = time.time()
-            tsd = ts_design()
-            M["ts"] = {"design_s": round(time.time() - t0, 2)}
-            plt = _plt()
-            keys = ["dlc100_noiseless", "dlc100", "dlc90", "dlc110", "dlc100_mass20"] + tv
-            fig, axs = plt.subplots(1, 2, figsize=(13, 4), constrained_layout=True)
-            hs, hl, tsv = [], [], []
-            for nm in keys:
-                r = rides[nm]
-                xs = ts_observer_run(r, tsd)
-                m = r.log.columns["t"] >= WARMUP_S
-                e = np.degrees(xs[m, 0] - r.states[m, 0])
-                res[f"{nm}_ts"] = {"phi_rmse_deg": float(np.sqrt(np.mean(e**2))), "phi_max_deg": float(np.abs(e).max())}
-                for tag, fn in (("fixed100", lambda rr: run_fixed(rr, cfg)), ("scheduled", lambda rr: run_lpv(rr, lpv))):
-                    if f"{nm}_{tag}" not in res:
-                        res[f"{nm}_{tag}"] = errors(fn(r), r)
-                hs.append(res[f"{nm}_fixed100"]["phi_rmse_deg"])
-                hl.append(res[f"{nm}_scheduled"]["phi_rmse_deg"])
-                tsv.append(res[f"{nm}_ts"]["phi_rmse_deg"])
-                if nm == "dlc100":
-                    t = r.log.columns["t"]
-                    axs[0].plot(t, np.degrees(r.states[:, 0]), color="C0", label="true")
-                    axs[0].plot(t, np.degrees(runs["dlc100"].x_hat[:, 0]), color="C3", lw=0.8, label="UIHOSMO (tau unknown)")
-                    axs[0].plot(t, np.degrees(xs[:, 0]), color="C1", lw=0.8, label="TS observer (tau known)")
-                    axs[0].set(xlabel="t [s]", ylabel="phi [deg]", title="DLC 100 km/h, default sensors")
-                    axs[0].legend(fontsize=7)
-            xx = np.arange(len(keys))
-            axs[1].bar(xx - 0.27, hs, 0.27, label="UIHOSMO fixed (100 km/h)", color="C3")
-            axs[1].bar(xx, hl, 0.27, label="UIHOSMO scheduled", color="C2")
-            axs[1].bar(xx + 0.27, tsv, 0.27, label="TS observer (knows tau)", color="C1")
-            axs[1].set_xticks(xx, keys, rotation=25, fontsize=7)
-            axs[1].set(ylabel="phi RMSE [deg]", title="roll-angle RMSE on the same logs")
-            axs[1].legend(fontsize=7)
-            fig.savefig(out / "fig_ts_compare.png", dpi=110)
-            plt.close(fig)
-        except Exception as exc:  # noqa: BLE001 - the comparison is optional; record why it did not run
-            M["ts"] = {"skipped": f"{type(exc).__name__}: {exc}"}
-            log(f"TS comparison skipped: {type(exc).__name__}: {exc}")
+        t0 = time.time()
+        tsd = ts_design()
+        M["ts"] = {"design_s": round(time.time() - t0, 2)}
+        plt = _plt()
+        keys = ["dlc100_noiseless", "dlc100", "dlc90", "dlc110", "dlc100_mass20"] + tv
+        fig, axs = plt.subplots(1, 2, figsize=(13, 4), constrained_layout=True)
+        hs, hl, tsv = [], [], []
+        for nm in keys:
+            r = rides[nm]
+            xs = ts_observer_run(r, tsd)
+            m = r.log.columns["t"] >= WARMUP_S
+            e = np.degrees(xs[m, 0] - r.states[m, 0])
+            res[f"{nm}_ts"] = {"phi_rmse_deg": float(np.sqrt(np.mean(e**2))), "phi_max_deg": float(np.abs(e).max())}
+            for tag, fn in (("fixed100", lambda rr: run_fixed(rr, cfg)), ("scheduled", lambda rr: run_lpv(rr, lpv))):
+                if f"{nm}_{tag}" not in res:
+                    res[f"{nm}_{tag}"] = errors(fn(r), r)
+            hs.append(res[f"{nm}_fixed100"]["phi_rmse_deg"])
+            hl.append(res[f"{nm}_scheduled"]["phi_rmse_deg"])
+            tsv.append(res[f"{nm}_ts"]["phi_rmse_deg"])
+            if nm == "dlc100":
+                t = r.log.columns["t"]
+                axs[0].plot(t, np.degrees(r.states[:, 0]), color="C0", label="true")
+                axs[0].plot(t, np.degrees(runs["dlc100"].x_hat[:, 0]), color="C3", lw=0.8, label="UIHOSMO (tau unknown)")
+                axs[0].plot(t, np.degrees(xs[:, 0]), color="C1", lw=0.8, label="TS observer (tau known)")
+                axs[0].set(xlabel="t [s]", ylabel="phi [deg]", title="DLC 100 km/h, default sensors")
+                axs[0].legend(fontsize=7)
+        xx = np.arange(len(keys))
+        axs[1].bar(xx - 0.27, hs, 0.27, label="UIHOSMO fixed (100 km/h)", color="C3")
+        axs[1].bar(xx, hl, 0.27, label="UIHOSMO scheduled", color="C2")
+        axs[1].bar(xx + 0.27, tsv, 0.27, label="TS observer (knows tau)", color="C1")
+        axs[1].set_xticks(xx, keys, rotation=25, fontsize=7)
+        axs[1].set(ylabel="phi RMSE [deg]", title="roll-angle RMSE on the same logs")
+        axs[1].legend(fontsize=7)
+        fig.savefig(out / "fig_ts_compare.png", dpi=110)
+        plt.close(fig)
 
     # 10. report --------------------------------------------------------------------
     M["results"] = res

@@ -140,10 +140,14 @@ def test_exact_reconstruction_on_smooth_data_and_finite_time_convergence(design1
     # roll angle and torque: exact up to the sampling error of the differentiators
     assert np.degrees(np.abs(run.x_hat[late, PHI] - X[late, PHI]).max()) < 0.05
     assert np.abs(run.unknown("tau")[late] - tau[late]).max() < 0.15
-    # the exactly estimated (clean) states converge in finite time from a large initial error
+    # the exactly estimated (clean) states: the measured ones (delta, r, phi_dot) are taken from the
+    # first sample, the differentiated one (delta_dot) starts from the paper's large initial error
+    # and converges in finite time (it last leaves the 2e-3 rad/s band at 1.16 s), then stays there
     clean = [DELTA, R, PHI_DOT, 5]
     err = np.abs(run.x_hat[:, clean] - X[:, clean])
-    assert err[0].max() > 0.05
+    assert err[0, :3].max() < 1e-12 and err[0, 3] > 0.05
+    settled = np.flatnonzero(err[:, 3] > 2e-3)[-1] + 1  # first sample after the last excursion
+    assert t[settled] < 1.5, t[settled]
     assert err[t > 1.5].max(axis=0).max() < 2e-3
     # unknown-input-free coordinates converge too (asymptotically, at the A22 rate)
     assert np.abs(run.x_hat[late, 2] - X[late, 2]).max() < 1e-3  # vy
@@ -157,7 +161,11 @@ def rides():
     }
 
 
-@pytest.mark.parametrize("which, phi_deg, tau_nm", [("clean", 0.25, 2.5), ("noisy", 1.2, 4.0)])
+# Regression bounds, ~25 % above what the observer reaches (clean: 0.075 deg, 1.79 N m; noisy, the
+# reference logs' sensors: 0.805 deg, 2.83 N m, lane change at 100 km/h). The torque is the weak part:
+# even noise-free it is 18 % of the torque RMS (9.9 N m), the sampling error of the second derivative
+# of delta that the reconstruction needs at 100 Hz.
+@pytest.mark.parametrize("which, phi_deg, tau_nm", [("clean", 0.1, 2.25), ("noisy", 1.0, 3.55)])
 def test_reconstruction_bounds_on_rides_with_truth(design100, rides, which, phi_deg, tau_nm):
     r = rides[which]
     c = r.log.columns
