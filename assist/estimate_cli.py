@@ -51,6 +51,8 @@ def plot_estimate(res, log, path: str | Path, nominal: np.ndarray, truth: np.nda
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ptw_env.vehicle import REFERENCE_SCOOTER
+
     from .lpv_model import THETA_NAMES
 
     fig, axs = plt.subplots(2, 2, figsize=(11, 6.5), constrained_layout=True)
@@ -66,7 +68,7 @@ def plot_estimate(res, log, path: str | Path, nominal: np.ndarray, truth: np.nda
     for ax, (col, idx, lab) in zip((axs[0, 1], axs[1, 0], axs[1, 1]), panels):
         ax.plot(log.t, c[col], color="0.6", lw=0.6, label="measured")
         if res.x_hat is not None:
-            est = res.x_hat[:, idx] if idx is not None else (res.x_hat[:, 6] + res.x_hat[:, 7]) / 303.31
+            est = res.x_hat[:, idx] if idx is not None else (res.x_hat[:, 6] + res.x_hat[:, 7]) / REFERENCE_SCOOTER.mass
             ax.plot(res.t, est, color="C0", lw=1.0, ls="--", label="estimate")
         if col == "ay" and res.x_hat is not None:
             ax2 = ax.twinx()

@@ -42,6 +42,7 @@ from assist.lpv_model import THETA_NAMES, build_lpv_model, observability_table  
 from ptw_env.logs import read_log  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
 from ptw_env.sensors import SensorConfig  # noqa: E402
+from ptw_env.vehicle import REFERENCE_SCOOTER  # noqa: E402
 
 C0 = build_lpv_model().theta0
 #: The adaptive observer in three configurations (design, parametrisation): the paper's (Theorem-2 gains,
@@ -92,7 +93,7 @@ def rmse_pct(x_hat: np.ndarray, X: np.ndarray, mass: float) -> dict[str, float]:
         rng = np.ptp(X[:, j])
         out[name] = float(100 * np.sqrt(np.mean((x_hat[:, j] - X[:, j]) ** 2)) / rng)
     ay_t = (X[:, 6] + X[:, 7]) / mass
-    ay_h = (x_hat[:, 6] + x_hat[:, 7]) / 303.31  # the observer's model mass
+    ay_h = (x_hat[:, 6] + x_hat[:, 7]) / REFERENCE_SCOOTER.mass  # the observer's model mass
     out["ay"] = float(100 * np.sqrt(np.mean((ay_h - ay_t) ** 2)) / np.ptp(ay_t))
     return out
 
@@ -101,7 +102,7 @@ def run_case(scenario: str, var: str, pct: float, seed: int, observers: dict[str
     effects, scales = VARIATIONS[var]
     r = ride_scenario(scenario, effects=effects, seed=seed, noise_pct=pct)  # 0 %: still the 10-bit encoder, 10 Hz GPS
     truth = truth_of(scales)
-    mass = 303.31 + effects.get("payload", {}).get("mass_kg", 0.0)
+    mass = REFERENCE_SCOOTER.mass + effects.get("payload", {}).get("mass_kg", 0.0)
     res = {}
     runs = {k: o.run_log(r.log) for k, o in observers.items()}
     run = runs["adaptive"]
