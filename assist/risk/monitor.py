@@ -385,7 +385,8 @@ class RiskMonitor:
         elif rho >= c_th:
             target, reason = CAUTION, f"caution: {what}; {grip}: {advice}"
         elif rho_low >= d_th:
-            target, reason = CAUTION, (f"caution: grip not confirmed ({fr.status}); {what}, "
+            why = fr.status if not fr.informed else "the estimate is still uncertain"
+            target, reason = CAUTION, (f"caution: grip not confirmed ({why}); {what}, "
                                        f"confirmed grip only {mu_low:.2f} ({grip})")
         else:
             target, reason = SAFE, (f"safe: {what}; {grip} ({fr.status})")
