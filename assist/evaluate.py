@@ -4,19 +4,31 @@ Controllers (``--controller`` of ``ptw-assist evaluate``):
 
 * ``ts``: the Takagi-Sugeno observer-based controller (:mod:`assist.ts_controller`),
   from the noisy yaw rate, roll rate, steering angle and rate only;
+* ``ts_state``: the same TS design's state feedback on the *true* state
+  (observer bypassed, :class:`assist.ts_controller.TSStateFeedback`): the
+  separation bound of the TS design, i.e. what the TS controller would do
+  with a perfect observer;
 * ``lqg``: gain-scheduled Kalman filter + LQR (:mod:`assist.lqg`), same measurements;
-* ``lqr``: gain-scheduled LQR with the *true* full state from ``info["state"]``:
-  the bound no output-feedback design can beat (same gains as the LQG);
+* ``lqr``: the full-state bound: gain-scheduled discrete LQR for roll tracking
+  (:class:`assist.lqg.TrackingLQR`, Bryson weights on the issue's 1 deg target)
+  with the TS controller's reference pre-filter and model-inverse feedforward,
+  on the *true* state ``info["state"]`` and speed (same gains as the LQG).
+  Not the simulated rider's gentler LQR (:mod:`ptw_env.rider`);
 * ``rl``: a stable-baselines3 policy, when one is available.
 
 Every controller is designed on the environment's *prior* model
-(``env.get_prior()``), never on the true plant, and sees the observation
-vector of :class:`ptw_env.env.PTWRollEnv`.
+(``env.get_prior()``, its dynamic ``prior_effects`` included), never on the
+true plant, and sees the observation vector of :class:`ptw_env.env.PTWRollEnv`.
+The model-based controllers (ts, ts_state, lqg, lqr) accept the prior effects
+the TS model expresses (:data:`assist.ts_model.TS_EXPRESSIBLE_EFFECTS`) and
+raise :class:`EvaluationError` for the others (a constant term, tire
+saturation, and the sensor effects their observers do not model) rather than
+ignore them.
 
 Metrics (per episode): roll-tracking RMSE and maximum absolute error [deg]
-of the true roll against the reference, torque RMS [N m], whether the scooter
-fell, and for observer-based controllers the RMSE of each estimated state
-(in its unit) over the episode.
+of the true roll against the reference, torque RMS and peak [N m], whether
+the scooter fell, and for observer-based controllers the RMSE of each
+estimated state (in its unit) over the episode.
 """
 
 from __future__ import annotations
@@ -31,7 +43,7 @@ import numpy as np
 from ptw_env.env import PTWRollEnv
 from ptw_env.vehicle import STATE_NAMES
 
-CONTROLLERS = ("ts", "lqr", "lqg", "rl")
+CONTROLLERS = ("ts", "ts_state", "lqr", "lqg", "rl")
 
 
 class EvaluationError(ValueError):
@@ -49,6 +61,22 @@ class Controller(Protocol):
     def x_hat(self) -> np.ndarray | None: ...
 
 
+def _prior_model(env: PTWRollEnv, controller: str, observer: bool = True):
+    """The prior plant a model-based controller is designed on, or :class:`EvaluationError` (module docstring)."""
+    from .ts_model import UnsupportedEffectError, split_model
+
+    prior = env.get_prior()
+    try:
+        split_model(prior)
+    except UnsupportedEffectError as err:
+        raise EvaluationError(f"controller {controller}: prior_effects: {err}") from None
+    sensor = list(env.prior_effects.sensor.params)
+    if observer and sensor:
+        raise EvaluationError(f"controller {controller}: prior_effects {', '.join(sensor)} are sensor effects "
+                              "its observer does not model; leave them out of the prior")
+    return prior
+
+
 def _measurements(obs: np.ndarray) -> np.ndarray:
     """[yaw_rate, roll_rate, delta, delta_rate] from the observation [delta, delta_rate, yaw_rate, roll_rate, ...]."""
     return np.array([obs[2], obs[3], obs[0], obs[1]], dtype=float)
@@ -63,8 +91,7 @@ class TSAdapter:
         from .ts_controller import TSObserverController
         from .ts_design import design
 
-        prior = env.get_prior()
-        self.design = design(prior.vehicle, vmin=vmin, vmax=vmax)
+        self.design = design(_prior_model(env, self.name), vmin=vmin, vmax=vmax)
         self.ctrl = TSObserverController(self.design)
 
     def reset(self) -> None:
@@ -84,7 +111,7 @@ class LQGAdapter:
     def __init__(self, env: PTWRollEnv) -> None:
         from .lqg import LQGController
 
-        self.ctrl = LQGController(env.get_prior().vehicle, env.sensor_config, env.dt, env.tau_max)
+        self.ctrl = LQGController(_prior_model(env, self.name), env.sensor_config, env.dt, env.tau_max)
 
     def reset(self) -> None:
         self.ctrl.reset()
@@ -98,24 +125,37 @@ class LQGAdapter:
 
 
 class FullStateLQR:
-    """Gain-scheduled LQR on the true state (``info["state"]``) and true speed: the bound."""
+    """:class:`assist.lqg.TrackingLQR` on the true state (``info["state"]``) and true speed: the bound."""
 
     name = "lqr"
 
     def __init__(self, env: PTWRollEnv) -> None:
-        from ptw_env.rider import LQRRider
+        from .lqg import TrackingLQR
 
-        self.rider = LQRRider(vehicle=env.get_prior().vehicle, torque_noise_nm=0.0, tau_max=env.tau_max, dt=env.dt)
+        self.ctrl = TrackingLQR(_prior_model(env, self.name, observer=False), env.dt, env.tau_max)
 
     def reset(self) -> None:
-        self.rider.reset(None)
+        self.ctrl.reset()
 
     def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
-        return self.rider.torque(info["state"], info["vx"], info["phi_ref"])
+        return self.ctrl.update(info["state"], info["vx"], info["phi_ref"])
 
     @property
     def x_hat(self) -> None:
         return None
+
+
+class TSStateAdapter(FullStateLQR):
+    """:class:`assist.ts_controller.TSStateFeedback` (TS gains, observer bypassed) on the true state and speed."""
+
+    name = "ts_state"
+
+    def __init__(self, env: PTWRollEnv, vmin: float | None = None, vmax: float | None = None) -> None:
+        from .ts_controller import TSStateFeedback
+        from .ts_design import design
+
+        self.design = design(_prior_model(env, self.name, observer=False), vmin=vmin, vmax=vmax)
+        self.ctrl = TSStateFeedback(self.design)
 
 
 def make_controller(name: str, env: PTWRollEnv, **options: Any) -> Controller:
@@ -126,6 +166,8 @@ def make_controller(name: str, env: PTWRollEnv, **options: Any) -> Controller:
         return LQGAdapter(env, **options)
     if name == "lqr":
         return FullStateLQR(env, **options)
+    if name == "ts_state":
+        return TSStateAdapter(env, **options)
     if name == "rl":
         from .rl import RLAdapter  # noqa: F401  (optional: stable-baselines3)
 
@@ -165,6 +207,7 @@ class Episode:
             "roll_rmse_deg": float(np.degrees(np.sqrt(np.mean(err**2)))),
             "roll_max_deg": float(np.degrees(np.max(np.abs(err)))),
             "torque_rms_nm": float(np.sqrt(np.mean(self.tau**2))),
+            "torque_max_nm": float(np.max(np.abs(self.tau))),
             "fell": bool(self.fell),
             "end_reason": self.reason,
             "estimation_rmse": None,

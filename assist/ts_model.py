@@ -31,8 +31,21 @@ the only approximation is ``sin(delta) ~ delta`` (steering angles are a few
 degrees). Vertex ``i = 2a + b`` sits at ``(z1, z2) = (vmin|vmax, z2min|1)``.
 
 All vertex matrices are built from a :class:`~ptw_env.vehicle.Vehicle`
-(default :data:`~ptw_env.vehicle.REFERENCE_SCOOTER`); nothing here writes a
-model entry.
+(default :data:`~ptw_env.vehicle.REFERENCE_SCOOTER`), or from a compiled
+:class:`~ptw_env.dynamics.Plant` (e.g. an environment's prior,
+``env.get_prior()``) whose dynamic effects keep that structure; nothing here
+writes a model entry.
+
+Effects the TS form can express (:data:`TS_EXPRESSIBLE_EFFECTS`): those of
+effects.md that only change the linear matrices, ``tire_stiffness``,
+``payload``, ``steer_damping``, ``relaxation_length``. The plant is then still
+``x' = A_l(vx) x + g_phi (sin(phi) - phi) + g_delta (sin(delta) - delta) + B tau``
+with ``A_l`` affine in ``vx``, and the vertex matrices are
+``A_i = A_l(z1) + (z2 - 1) g_phi e_phi^T``, read off ``Plant.rhs`` (the physics
+stays in :mod:`ptw_env.dynamics`). ``road_bank`` and ``roll_moment_offset``
+add a constant term and ``tire_saturation`` a saturation of the tire forces,
+none of which a sum of linear vertex models holds: they raise
+:class:`UnsupportedEffectError` instead of being dropped silently.
 
 Augmentation (the roll-tracking design model, [1]_ section III-B and eq. (1))
 ---------------------------------------------------------------------------
@@ -90,8 +103,16 @@ H1_GAIN, H1_CORNER = 3.0, 30.0 * math.pi
 H2_GAIN, H2_CORNER = 40.0 * math.pi, 20.0 * math.pi
 
 
+#: Dynamic effects of effects.md that the TS form expresses exactly (they change the linear matrices only).
+TS_EXPRESSIBLE_EFFECTS: tuple[str, ...] = ("tire_stiffness", "payload", "steer_damping", "relaxation_length")
+
+
 class PremiseError(ValueError):
     """A premise-box definition that cannot hold (speed range outside the vehicle's, phi_max out of (0, pi/2))."""
+
+
+class UnsupportedEffectError(ValueError):
+    """A plant effect the TS model cannot express (a constant term or tire saturation)."""
 
 
 def sinc_premise(phi: np.ndarray | float) -> np.ndarray:
@@ -108,7 +129,7 @@ class TSModel:
     Attributes
     ----------
     vehicle : Vehicle
-        Source of every matrix entry.
+        Source of every matrix entry (with ``effects`` on top).
     vmin, vmax : float
         Premise box on ``z1 = vx`` [m/s].
     phi_max : float
@@ -123,6 +144,8 @@ class TSModel:
         Measurement matrix (rows: yaw rate, roll rate, steering angle, steering rate).
     vertices : ndarray, shape (4, 2)
         ``(z1, z2)`` of each vertex.
+    effects : tuple of str
+        Names of the dynamic effects folded into the matrices (empty: the vehicle alone).
     """
 
     vehicle: Vehicle
@@ -134,6 +157,7 @@ class TSModel:
     B: np.ndarray
     C: np.ndarray
     vertices: np.ndarray
+    effects: tuple[str, ...] = ()
 
     # -- premise and memberships -----------------------------------------
     def premises(self, vx: np.ndarray | float, phi: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
@@ -213,8 +237,80 @@ class AugmentedModel:
         return self.A.shape[-1]
 
 
+def _plant_columns(plant, vx: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A_l(vx), g_phi, B)`` of a plant ``x' = A_l x + g_phi (sin phi - phi) + g_delta (sin delta - delta) + B tau``.
+
+    Read off :meth:`ptw_env.dynamics.Plant.rhs`: column ``j`` of ``A_l`` is
+    ``f(e_j)`` for the states entering linearly; for ``phi`` and ``delta``,
+    ``f(h e_j) = h A_l[:, j] + (sin h - h) g_j`` at ``h = 0.5`` and ``1`` rad
+    gives both vectors (a 2 x 2 solve per row).
+    """
+    f = plant.rhs
+    A = np.empty((8, 8))
+    g_phi = np.zeros(8)
+    for j in range(8):
+        e = np.zeros(8)
+        if j in (PHI, DELTA):
+            hs = np.array([0.5, 1.0])
+            M = np.column_stack([hs, np.sin(hs) - hs])
+            F = np.stack([f(h * np.eye(8)[j], 0.0, vx) for h in hs])
+            sol = np.linalg.solve(M, F)
+            A[:, j] = sol[0]
+            if j == PHI:
+                g_phi = sol[1]
+        else:
+            e[j] = 1.0
+            A[:, j] = f(e, 0.0, vx)
+    B = (f(np.zeros(8), 1.0, vx) - f(np.zeros(8), 0.0, vx))[:, None]
+    return A, g_phi, B
+
+
+def split_model(model) -> tuple[Vehicle, object | None, tuple[str, ...]]:
+    """``(vehicle, plant or None, effect names)`` of a design model: a Vehicle, None (the reference scooter),
+    or a :class:`~ptw_env.dynamics.Plant` whose effects the TS form expresses (``plant`` is None when it
+    has none); raises :class:`UnsupportedEffectError` otherwise."""
+    from ptw_env.dynamics import Plant
+
+    if model is None:
+        return REFERENCE_SCOOTER, None, ()
+    if isinstance(model, Vehicle):
+        return model, None, ()
+    if not isinstance(model, Plant):
+        raise TypeError(f"vehicle must be a Vehicle or a ptw_env.dynamics.Plant, got {type(model).__name__}")
+    if model.batch_shape:
+        raise UnsupportedEffectError(f"the TS model takes one plant, got a batch of shape {model.batch_shape}")
+    causes = tuple(model.effects.dynamic.params)
+    bad = [c for c in causes if c not in TS_EXPRESSIBLE_EFFECTS]
+    if bad:
+        raise UnsupportedEffectError(
+            f"the TS model cannot express the effect(s) {', '.join(bad)} of the plant (a constant term or tire "
+            f"saturation is not a blend of linear vertex models); it can: {', '.join(TS_EXPRESSIBLE_EFFECTS)}")
+    return model.vehicle, (model if causes else None), causes
+
+
+def upright_matrices(model=None, vx: float = 15.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)`` of the model linearised at the upright at speed ``vx`` [m/s]: ``(E^-1 A(vx), E^-1 B)`` (model.md).
+
+    ``model``: a Vehicle (default the reference scooter) or a plant with
+    :data:`TS_EXPRESSIBLE_EFFECTS` only (read off its ``rhs``; the sines
+    have unit slope at 0), so every controller designed on an environment's
+    prior uses the same matrices as the TS model.
+
+    Examples
+    --------
+    >>> A, B = upright_matrices(vx=20.0)
+    >>> A.shape, B.shape
+    ((8, 8), (8, 1))
+    """
+    v, plant, _ = split_model(model)
+    if plant is None:
+        return v.state_matrix(vx), v.input_matrix()
+    A, _, B = _plant_columns(plant, float(vx))
+    return A, B
+
+
 def build_ts_model(
-    vehicle: Vehicle | None = None,
+    vehicle=None,
     vmin: float | None = None,
     vmax: float | None = None,
     phi_max: float = PHI_MAX,
@@ -223,8 +319,10 @@ def build_ts_model(
 
     Parameters
     ----------
-    vehicle : Vehicle, optional
-        Defaults to the reference scooter.
+    vehicle : Vehicle or ptw_env.dynamics.Plant, optional
+        Defaults to the reference scooter. A plant (e.g. ``env.get_prior()``)
+        brings its dynamic effects; only :data:`TS_EXPRESSIBLE_EFFECTS` are
+        accepted (module docstring).
     vmin, vmax : float, optional
         Speed range of the design [m/s]; default the vehicle's valid range.
         Must lie inside it with ``vmin < vmax``.
@@ -235,8 +333,11 @@ def build_ts_model(
     ------
     PremiseError
         When the box is empty or leaves the vehicle's valid range.
+    UnsupportedEffectError
+        A plant with an effect the TS form cannot express (``road_bank``,
+        ``roll_moment_offset``, ``tire_saturation``).
     """
-    v = REFERENCE_SCOOTER if vehicle is None else vehicle
+    v, plant, causes = split_model(vehicle)
     lo = v.vmin if vmin is None else float(vmin)
     hi = v.vmax if vmax is None else float(vmax)
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
@@ -250,19 +351,25 @@ def build_ts_model(
     z2min = float(math.sin(phi_max) / phi_max)
     verts = np.array([[z1, z2] for z1 in (lo, hi) for z2 in (z2min, 1.0)])
     A = np.empty((4, 8, 8))
-    for i, (z1, z2) in enumerate(verts):
-        At = v.A(z1).copy()
-        At[PHI_DOT, PHI] *= z2  # a51 phi -> a51 z2 phi = a51 sin(phi)
-        At[DELTA_DOT, PHI] *= z2  # a61 phi -> a61 sin(phi)
-        A[i] = np.linalg.solve(v.E, At)
+    if plant is None:
+        for i, (z1, z2) in enumerate(verts):
+            At = v.A(z1).copy()
+            At[PHI_DOT, PHI] *= z2  # a51 phi -> a51 z2 phi = a51 sin(phi)
+            At[DELTA_DOT, PHI] *= z2  # a61 phi -> a61 sin(phi)
+            A[i] = np.linalg.solve(v.E, At)
+        B = v.input_matrix()
+    else:
+        for i, (z1, z2) in enumerate(verts):
+            Al, g_phi, B = _plant_columns(plant, z1)
+            Al[:, PHI] += (z2 - 1.0) * g_phi  # A_l phi + g_phi (sin(phi) - phi) with sin(phi) = z2 phi
+            A[i] = Al
     C = np.zeros((4, 8))
     for row, col in enumerate(MEASURED_STATES):
         C[row, col] = 1.0
-    for a in (A, C, verts):
+    for a in (A, B, C, verts):
         a.setflags(write=False)
-    B = v.input_matrix()
-    B.setflags(write=False)
-    return TSModel(vehicle=v, vmin=lo, vmax=hi, phi_max=float(phi_max), z2min=z2min, A=A, B=B, C=C, vertices=verts)
+    return TSModel(vehicle=v, vmin=lo, vmax=hi, phi_max=float(phi_max), z2min=z2min, A=A, B=B, C=C, vertices=verts,
+                   effects=causes)
 
 
 def augment(ts: TSModel) -> AugmentedModel:
@@ -313,8 +420,12 @@ __all__ = [
     "PHI_MAX",
     "PremiseError",
     "TSModel",
+    "TS_EXPRESSIBLE_EFFECTS",
+    "UnsupportedEffectError",
     "augment",
     "build_ts_model",
     "observer_sensitivity_filter",
     "sinc_premise",
+    "split_model",
+    "upright_matrices",
 ]

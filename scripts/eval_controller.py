@@ -1,17 +1,26 @@
-"""Closed-loop evaluation of the TS observer-based controller against LQG and full-state LQR.
+"""Closed-loop evaluation of the TS observer-based controller against LQG and the full-state bounds.
 
 Every episode runs through ``env.step`` (:func:`assist.evaluate.run_episode`),
 the TS and LQG controllers seeing only the noisy yaw rate, roll rate,
-steering angle and rate, the LQR the true state. Grid:
+steering angle and rate; the two full-state bounds see the true state:
+``lqr`` (:class:`assist.lqg.TrackingLQR`, the bound of the issue: tracking
+LQR with the TS controller's reference feedforward) and ``ts_state`` (the
+TS design's gains on the true state, observer bypassed: what the TS
+controller would do with a perfect observer). Grid:
 
 * controllers: ``ts`` designed on the paper's 10-20 m/s, ``ts`` on the wide
-  8-33 m/s range, ``lqg``, ``lqr`` (and ``rl`` with ``--rl`` when a policy exists);
+  8-33 m/s range, ``ts_state`` (8-33 m/s), ``lqg``, ``lqr`` (and ``rl`` with
+  ``--rl`` when a policy exists);
 * scenarios: double lane change at 50 and 100 km/h, constant radius with
   acceleration 50 -> 100 km/h, urban ride (8-25 m/s);
 * sensor noise 0, 5, 10 % of each channel's range; seeds 0..S-1.
 
-Writes ``table.md`` (the metrics table), ``results.json`` (every episode's
-metrics) and one figure per scenario (``<scenario>.png``) into ``--out``.
+Writes ``table.md`` (the metrics table: roll RMSE and max, torque RMS and
+peak, falls, estimation RMSE of every state), ``results.json`` (every
+episode's metrics) and one figure per scenario at 5 % noise
+(``<scenario>_<speed>.png``: roll vs reference vs estimate, torque, tracking
+error, every state true vs estimated, the LQG and the LQR bound overlaid)
+into ``--out``.
 
 Run: ``python scripts/eval_controller.py --out out/controller [--seeds 3] [--quick]``.
 """
@@ -22,9 +31,13 @@ import argparse
 import json
 from pathlib import Path
 
-from tqdm import tqdm
+import matplotlib
 
-from assist.evaluate import aggregate, metrics_table, plot_episode, run_episode
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from assist.evaluate import aggregate, metrics_table, plot_episode, run_episode  # noqa: E402
 
 SCENARIOS = [
     ("double_lane_change", 50.0),
@@ -35,8 +48,9 @@ SCENARIOS = [
 CONTROLLERS = [
     ("ts", {"vmin": 10.0, "vmax": 20.0}, "ts (10-20 m/s)"),
     ("ts", {"vmin": 8.0, "vmax": 33.0}, "ts (8-33 m/s)"),
+    ("ts_state", {"vmin": 8.0, "vmax": 33.0}, "ts_state (true state)"),
     ("lqg", {}, "lqg"),
-    ("lqr", {}, "lqr (full state)"),
+    ("lqr", {}, "lqr (full-state bound)"),
 ]
 
 
@@ -73,8 +87,10 @@ def main() -> None:
         main_ep = d.get("ts (8-33 m/s)")
         if main_ep is None:
             continue
-        others = [d[k] for k in ("lqg", "lqr (full state)") if k in d]
-        plot_episode(main_ep, out / f"{sc}_{int(sp) if sp else 'profile'}.png", compare=others)
+        others = [d[k] for k in ("lqg", "lqr (full-state bound)") if k in d]
+        path = out / f"{sc}_{int(sp) if sp else 'profile'}.png"
+        plt.close(plot_episode(main_ep, path, compare=others))
+        print(f"figure: {path}")
     print(table)
     print(f"\nwritten to {out}/")
 

@@ -11,7 +11,9 @@ from scipy.integrate import solve_ivp
 
 from assist.ts_controller import (
     MeasurementError,
+    ReferenceFilter,
     TSObserverController,
+    TSStateFeedback,
     foh_discretise,
     reference_series,
     run_closed_loop,
@@ -126,6 +128,78 @@ def test_steady_turn_is_an_equilibrium_of_the_nonlinear_plant(dz):
         x, tau = phi_r * S[:8], phi_r * S[8]
         expected = np.linalg.solve(v.E, col) * (math.sin(x[DELTA]) - x[DELTA])
         np.testing.assert_allclose(plant.rhs(x, tau, vx), expected, rtol=1e-6, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- reference filter
+def test_reference_filter_is_the_stated_transfer_functions():
+    # Independent reference: scipy's lsim of F(s), s F(s), s^2 F(s), F = (1 + 3s/w)/(1 + s/w)^3, with the
+    # input linear between samples (lsim's interpolation = the filter's first-order hold).
+    from scipy import signal
+
+    w = 30.0
+    t = np.arange(801) * DT
+    r = lane_change_roll(t, starts=(1.0, 4.0), period=2.0) + 0.05 * np.sin(3.0 * t) ** 2
+    f = ReferenceFilter(w, DT)
+    got = np.array([f.update(v) for v in r])
+    num = np.array([3.0 / w, 1.0])
+    den = np.array([1.0, 3 * w, 3 * w**2, w**3]) / w**3
+    for j in range(3):
+        _, ref, _ = signal.lsim((np.polymul(num, [1.0] + [0.0] * j), den), r, t)
+        np.testing.assert_allclose(got[:, j], ref, rtol=0, atol=1e-7 * max(1.0, np.abs(ref).max()))
+
+
+def test_reference_filter_follows_a_parabola_with_the_stated_error():
+    # F - 1 = -3 (s/w)^2 + O(s^3): for phi_r = a t^2/2 the outputs settle at phi_r - 3a/w^2, phi_r' and a
+    # (plus a dt^2/12 on phi_f: the filter sees the chords between samples, above the parabola by that on average;
+    # the chords' kinks make a ripple at the sample instants: ~1e-7 rad, ~1e-5 rad/s and, since w dt = 0.3 is not
+    # small, 2.2 % low on phi_f'', hence the tolerances; test_reference_filter_is_the_stated_transfer_functions
+    # checks the realisation exactly).
+    w, a = 30.0, 3.5
+    f = ReferenceFilter(w, DT)
+    t = np.arange(400) * DT
+    out = np.array([f.update(0.5 * a * tk**2) for tk in t])
+    assert out[-1, 0] - 0.5 * a * t[-1] ** 2 == pytest.approx(-3 * a / w**2 + a * DT**2 / 12, rel=1e-4)
+    assert out[-1, 1] == pytest.approx(a * t[-1], rel=1e-5)
+    assert out[-1, 2] == pytest.approx(a, rel=0.03)
+
+
+def test_reference_filter_second_derivative_is_continuous_where_the_reference_is_only_c1():
+    # phi_r = a (t - t0)^2 / 2 after t0: phi_r'' jumps by a. Two backward differences jump by ~a in one sample
+    # whatever the sampling; the filter's phi_f'' is continuous: its largest one-sample change shrinks with dt.
+    a, t0 = 3.5, 0.5
+
+    def largest_step(dt: float) -> float:
+        f = ReferenceFilter(30.0, dt)
+        t = np.arange(int(round(1.5 / dt))) * dt
+        d2 = np.array([f.update(0.5 * a * max(tk - t0, 0.0) ** 2)[2] for tk in t])
+        return float(np.abs(np.diff(d2)).max())
+
+    coarse, fine = largest_step(0.01), largest_step(0.001)
+    assert coarse < 0.5 * a
+    assert fine < 0.2 * coarse
+
+
+def test_reference_filter_rejects_bad_settings():
+    for bw in (0.0, -3.0, float("nan"), 400.0):  # 400 rad/s is beyond pi/dt = 314 rad/s
+        with pytest.raises(ValueError, match="bandwidth"):
+            ReferenceFilter(bw, DT)
+    with pytest.raises(MeasurementError, match="finite"):
+        ReferenceFilter().update(float("nan"))
+
+
+def test_state_feedback_is_the_ts_gain_on_the_true_state(dz):
+    # Observer bypassed: tau = -sum mu_i(vx, phi) K_i [x; e_phi; s2] with zero reference, the memberships of the
+    # true roll and speed, and e_phi the exact integral of phi.
+    sf = TSStateFeedback(dz)
+    x = np.array([0.01, 0.002, 0.1, 0.02, 0.0, 0.0, 50.0, 40.0])
+    mu = dz.ts.memberships(17.0, x[PHI])
+    for k in range(5):
+        tau = sf.update(x, 17.0, 0.0)
+        e_phi = x[PHI] * k * DT
+        assert sf.augmented[0] == pytest.approx(e_phi, rel=1e-9, abs=1e-15)
+        assert tau == pytest.approx(-(mu @ dz.controller.K) @ np.r_[x, sf.augmented], rel=1e-9)
+    with pytest.raises(MeasurementError):
+        sf.update(np.zeros(7), 17.0, 0.0)
 
 
 # --------------------------------------------------------------------------- closed loop on the nonlinear plant

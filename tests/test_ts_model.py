@@ -14,12 +14,15 @@ from assist.ts_model import (
     H2_GAIN,
     MEASURED_STATES,
     PremiseError,
+    UnsupportedEffectError,
     augment,
     build_ts_model,
     observer_sensitivity_filter,
     sinc_premise,
+    upright_matrices,
 )
 from ptw_env.dynamics import compile_plant, linearise
+from ptw_env.effects import Effects
 from ptw_env.vehicle import DELTA, DELTA_DOT, PHI, PHI_DOT, REFERENCE_SCOOTER, STATE_NAMES
 
 RNG = np.random.default_rng(20240501)
@@ -90,6 +93,40 @@ def test_ts_rhs_plus_the_known_sin_delta_term_equals_the_nonlinear_plant_for_any
     assert np.all(np.abs(got - plant.rhs(x, tau, vx)) <= _tolerance(ts, x, tau, vx) + 1e-12 * np.abs(corr))
     # and the difference is not negligible: the correction is what closes the gap
     assert np.max(np.abs(corr)) > 1e3 * np.max(_tolerance(ts, x, tau, vx))
+
+
+PRIOR_EFFECTS = ["tire_stiffness:front_scale=0.8,rear_scale=1.1", "payload:mass_kg=80",
+                 "steer_damping:damping_nms=20", "relaxation_length:sigma_m=0.3"]
+
+
+def test_ts_model_of_a_plant_with_linear_effects_is_exact():
+    # An environment's prior may carry the effects that only change the linear matrices: the TS model
+    # of that plant matches its right-hand side to machine precision (delta = 0), and differs from the
+    # nominal one (the effects are not dropped).
+    plant = compile_plant(None, Effects.parse(PRIOR_EFFECTS))
+    ts = build_ts_model(plant, vmin=8.0, vmax=33.0)
+    assert set(ts.effects) == {"tire_stiffness", "payload", "steer_damping", "relaxation_length"}
+    x = _random_states(400, RNG)
+    x[:, DELTA] = 0.0
+    vx = RNG.uniform(8.0, 33.0, 400)
+    tau = RNG.normal(0.0, 20.0, 400)
+    assert np.all(np.abs(ts.rhs(x, tau, vx) - plant.rhs(x, tau, vx)) <= _tolerance(ts, x, tau, vx))
+    nominal = build_ts_model(vmin=8.0, vmax=33.0)
+    assert np.abs(ts.A - nominal.A).max() > 0.05 * np.abs(nominal.A).max()
+    A, B = upright_matrices(plant, 20.0)
+    A_fd, B_fd = linearise(plant, 20.0)  # independent: central differences
+    np.testing.assert_allclose(A, A_fd, rtol=1e-6, atol=1e-6 * np.abs(A).max())
+    np.testing.assert_allclose(B, B_fd, rtol=1e-6)
+
+
+@pytest.mark.parametrize("effect", ["road_bank:bank_rad=0.05", "roll_moment_offset:moment_nm=20",
+                                    "tire_saturation:mu_peak=0.9"])
+def test_effects_the_ts_form_cannot_hold_are_refused_not_dropped(effect):
+    plant = compile_plant(None, Effects.parse([effect]))
+    with pytest.raises(UnsupportedEffectError, match=effect.split(":")[0]):
+        build_ts_model(plant)
+    with pytest.raises(UnsupportedEffectError):
+        upright_matrices(plant, 15.0)
 
 
 def test_upright_ts_matrix_is_the_linearisation_of_the_plant():
