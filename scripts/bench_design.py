@@ -4,8 +4,12 @@ Measures, in one run:
 
 * the full design (balancing, build and solve of Theorems 1 and 2, numpy
   certificate, sampled-loop check) with Clarabel, repeated with the cache
-  cleared, and once with SCS at its default tolerance (whose answer is
-  expected to fail the certificate: the benchmark reports how);
+  cleared;
+* the same two theorem problems (same scaled data, same options: the
+  problems the Clarabel design solved) with Clarabel and with SCS at its
+  default tolerance, in the same run (:func:`assist.ts_design.compare_solver`):
+  wall time, solver status, whether the returned point passes the numpy
+  certificate, and the SCS / Clarabel time ratio;
 * one :meth:`assist.ts_controller.TSObserverController.update` in
   microseconds, against one :meth:`ptw_env.integrate.Stepper.step` and one
   ``PTWRollEnv.step`` (when the environment is importable).
@@ -110,10 +114,23 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"  {th:10s}: balance {p['balance_s']:.2f} s, build {p['build_s']:.2f} s, "
                   f"solve {p['solve_s']:.2f} s ({p['status']})")
     if not args.no_scs:
-        out["scs"] = time_design("SCS", 1, args.vmin, args.vmax)
-        s = out["scs"]
-        print(f"design, SCS (default tolerance): {s['median_s']:.1f} s -> {s['outcome']}")
-        print(f"  SCS / Clarabel time: {s['median_s'] / c['median_s']:.0f}x")
+        dz = ts_design.design(vmin=args.vmin, vmax=args.vmax)
+        same = {name: ts_design.compare_solver(dz, name) for name in ("CLARABEL", "SCS")}
+        out["same_problem"] = same
+        print("the same two theorem problems (scaled data and options of the Clarabel design):")
+        for name, r in same.items():
+            for th in ("observer", "controller"):
+                p = r[th]
+                w = p["worst_lmi"]
+                cert = "no point returned" if w is None else (
+                    f"certificate {'passed' if p['certified'] else 'FAILED'}: worst LMI '{w['lmi']}' vertex "
+                    f"{w['vertex']}, largest eigenvalue {w['max_eig']:+.2e} (required < {-dz.options.margin:.0e})")
+                print(f"  {name:8s} {th:10s}: {p['wall_s']:7.2f} s, status {p['status']}; {cert}")
+        ratio = same["SCS"]["wall_s"] / same["CLARABEL"]["wall_s"]
+        out["scs_over_clarabel"] = ratio
+        print(f"  SCS / Clarabel time on the same problems: {ratio:.0f}x "
+              f"({same['SCS']['wall_s']:.1f} s vs {same['CLARABEL']['wall_s']:.2f} s); "
+              f"SCS answer {'certified' if same['SCS']['certified'] else 'rejected by the certificate'}")
     u = time_update(args.calls)
     out["runtime"] = u
     print(f"one observer+controller update: {u['update_us']:.2f} us")

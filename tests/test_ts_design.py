@@ -134,6 +134,19 @@ def test_common_lyapunov_function_decreases_for_switching_blends(dz):
             assert np.linalg.norm(e) <= over * np.linalg.norm(e0) * math.exp(-eta * k * h / 2) * (1 + 1e-9)
 
 
+def test_iss_rate_is_imposed_and_the_paper_form_leaves_it_near_zero(dz):
+    # Default: the controller's theorem LMI carries + eta X2 with eta = 2 1/s, so its ISS rate is at least that.
+    c = dz.controller
+    assert c.iss["decay_rate"] >= dz.options.controller.iss_rate * (1 - 1e-6)
+    assert c.iss["decay_rate"] <= c.iss["nominal_decay_rate"]
+    # The paper's form (iss_rate 0): the minimised eps leave the inequality nearly tight, the rate near 0.
+    paper = design(options=DesignOptions(controller=TheoremOptions(decay=2.0, gain_weight=0.1)), cache=False)
+    assert paper.controller.iss["decay_rate"] < 0.05 * c.iss["decay_rate"]
+    assert paper.controller.iss["gain_estimation_error"] > 10 * c.iss["gain_estimation_error"]
+    with pytest.raises(DesignOptionError, match="iss_rate"):
+        TheoremOptions(decay=1.0, iss_rate=3.0)
+
+
 def test_iss_numbers_are_finite_and_consistent(dz):
     for part in (dz.observer, dz.controller):
         iss = part.iss
@@ -183,10 +196,15 @@ def test_impossible_decay_rate_raises_a_design_error_naming_vertex_and_lmi():
 
 
 def test_absurd_speed_range_raises_a_design_error():
+    # The 3 m/s vertex passes alone with its own scaling (a [3, 8] m/s design is feasible): the error must
+    # name the range as the likely cause, besides the vertex and the LMI.
     with pytest.raises(DesignError) as err:
         design(vmin=3.0, vmax=40.0, cache=False)
-    assert err.value.vertex is not None
-    assert "vx = 3 m/s" in str(err.value)
+    e = err.value
+    assert e.vertex is not None and e.lmi
+    assert "vx = 3 m/s" in str(e)
+    assert "speed range [3, 40] m/s is likely too wide" in e.cause
+    assert "lower the decay rate" not in e.cause
 
 
 def test_design_report_turns_an_infeasible_design_into_json():
@@ -239,6 +257,32 @@ def test_summary_is_json_with_the_cli_keys(dz):
     assert "vertex 3" in format_summary(s)
 
 
+def test_summary_text_prints_the_gains_and_the_solve_times(dz):
+    text = format_summary(dz.summary())
+    lines = text.splitlines()
+    for i, K in enumerate(dz.controller.K):
+        row = next(line for line in lines if line.strip().startswith(f"K_{i} "))
+        assert [float(v) for v in row.split()[1:]] == pytest.approx(K, rel=5e-3)
+    phi_row = [line for line in lines if line.strip().startswith("phi ") and "delta" not in line]
+    assert len(phi_row) == 2  # L_0 | L_1, then L_2 | L_3
+    vals = [float(v) for v in phi_row[0].split()[1:]]
+    assert vals == pytest.approx(np.r_[dz.observer.L[0][0], dz.observer.L[1][0]], rel=5e-3)
+    for th in ("observer", "controller"):
+        t = dz.summary()["timing"][th]
+        assert f"{th} solve: balance {t['balance_s']:.2f} s, build {t['build_s']:.2f} s, solve {t['solve_s']:.2f} s" \
+            in text
+    assert "ISS in physical units" in text and "deg per deg of reference" in text
+
+
+def test_compare_solver_resolves_the_same_problems_and_certifies():
+    dz = design()
+    r = tdz.compare_solver(dz, "CLARABEL")
+    assert r["certified"] and r["observer"]["status"] == dz.observer.status
+    assert r["controller"]["worst_lmi"]["max_eig"] < -dz.options.margin
+    with pytest.raises(DesignOptionError):
+        tdz.compare_solver(dz, "MOSEK")
+
+
 def test_same_problem_is_not_solved_twice(dz):
     again = design()
     assert again.cached and again.key == dz.key
@@ -271,3 +315,5 @@ def test_scs_at_default_tolerance_fails_the_certificate():
     # The warning, reproduced: SCS reports (near-)optimal, the numpy check rejects the point.
     with pytest.raises(DesignError, match="violates the LMI"):
         design(solver="SCS", cache=False)
+    r = tdz.compare_solver(design(), "SCS")  # the very problems Clarabel solved
+    assert not r["certified"] and r["observer"]["status"].startswith("optimal")
