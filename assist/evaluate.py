@@ -273,7 +273,7 @@ def plot_episode(ep: Episode, path=None, compare: list[Episode] | None = None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axs = plt.subplots(3, 2, figsize=(12, 8.5), constrained_layout=True)
+    fig, axs = plt.subplots(5, 2, figsize=(12, 13), constrained_layout=True)
     ax = axs[0, 0]
     ax.plot(ep.t, np.degrees(ep.phi_ref), "k--", lw=1, label="reference")
     ax.plot(ep.t, np.degrees(ep.x[:, 0]), color="C3", label=f"true roll ({ep.controller})")
@@ -290,31 +290,49 @@ def plot_episode(ep: Episode, path=None, compare: list[Episode] | None = None):
         ax.plot(other.t, other.tau, lw=0.7, color=col, label=other.controller)
     ax.set(ylabel="steering torque [N m]", title="control input")
     ax.legend(fontsize=8)
-    panels = [(2, "vy", "m/s"), (3, "r", "rad/s"), (1, "delta", "rad"), (6, "Fyf", "N")]
-    for ax, (i, nm, unit) in zip(axs[1:].ravel(), panels):
-        ax.plot(ep.t, ep.x[:, i], color="C3", label="true")
+    ax = axs[1, 0]
+    ax.plot(ep.t, np.degrees(ep.x[:, 0] - ep.phi_ref), color="C3", lw=0.9, label=ep.controller)
+    for other, col in zip(compare or [], colors):
+        ax.plot(other.t, np.degrees(other.x[:, 0] - other.phi_ref), lw=0.7, color=col, label=other.controller)
+    ax.set(ylabel="roll error phi - phi_ref [deg]", title="tracking error")
+    ax.legend(fontsize=8)
+    panels = [(1, "delta", "deg", 180 / np.pi), (2, "vy", "m/s", 1.0), (3, "r", "deg/s", 180 / np.pi),
+              (4, "phi_dot", "deg/s", 180 / np.pi), (5, "delta_dot", "deg/s", 180 / np.pi), (6, "Fyf", "N", 1.0),
+              (7, "Fyr", "N", 1.0)]
+    for ax, (i, nm, unit, f) in zip(axs.ravel()[3:], panels):
+        ax.plot(ep.t, f * ep.x[:, i], color="C3", label=f"true ({ep.controller})")
         if ep.x_hat is not None:
-            ax.plot(ep.t, ep.x_hat[:, i], color="C0", lw=0.9, label="estimated")
-        ax.set(ylabel=f"{nm} [{unit}]", xlabel="t [s]")
+            ax.plot(ep.t, f * ep.x_hat[:, i], color="C0", lw=0.9, label="estimated")
+        ax.set(ylabel=f"{nm} [{unit}]")
         ax.legend(fontsize=8)
+    for ax in axs[-1]:
+        ax.set_xlabel("t [s]")
     if path is not None:
         fig.savefig(path, dpi=110)
     return fig
 
 
+#: Estimation columns of :func:`metrics_table`: state, unit shown, factor from the model.md unit.
+EST_COLUMNS = (("phi", "deg", 180 / math.pi), ("delta", "deg", 180 / math.pi), ("vy", "m/s", 1.0),
+               ("r", "deg/s", 180 / math.pi), ("phi_dot", "deg/s", 180 / math.pi),
+               ("delta_dot", "deg/s", 180 / math.pi), ("Fyf", "N", 1.0), ("Fyr", "N", 1.0))
+
+
 def metrics_table(rows: list[dict[str, Any]]) -> str:
-    """A Markdown table of episode metrics (one row per episode or per aggregate)."""
-    head = "| controller | scenario | speed km/h | noise % | seeds | roll RMSE deg | roll max deg | torque RMS N m | falls | phi est RMSE deg | vy est RMSE m/s |"
-    sep = "|" + "---|" * 11
-    lines = [head, sep]
+    """A Markdown table of episode metrics (one row per episode or per aggregate), with the RMSE of every
+    estimated state (``-`` for controllers without an estimate)."""
+    est_head = " | ".join(f"{n} est {u}" for n, u, _ in EST_COLUMNS)
+    head = ("| controller | scenario | speed km/h | noise % | seeds | roll RMSE deg | roll max deg | torque RMS N m "
+            f"| torque peak N m | falls | {est_head} |")
+    lines = [head, "|" + "---|" * (10 + len(EST_COLUMNS))]
     for r in rows:
         est = r.get("estimation_rmse") or {}
-        phi = f"{math.degrees(est['phi']):.3f}" if "phi" in est else "-"
-        vy = f"{est['vy']:.3f}" if "vy" in est else "-"
+        cols = " | ".join(f"{f * est[n]:.3g}" if n in est else "-" for n, _, f in EST_COLUMNS)
+        peak = r.get("torque_max_nm")
         lines.append(
             f"| {r['controller']} | {r['scenario']} | {r.get('speed_kmh') or '-'} | {r.get('noise_pct')} | "
             f"{r.get('seeds', 1)} | {r['roll_rmse_deg']:.3f} | {r['roll_max_deg']:.2f} | {r['torque_rms_nm']:.2f} | "
-            f"{r.get('falls', int(r['fell']))} | {phi} | {vy} |"
+            f"{'-' if peak is None else f'{peak:.1f}'} | {r.get('falls', int(r['fell']))} | {cols} |"
         )
     return "\n".join(lines)
 
@@ -327,6 +345,7 @@ def aggregate(episodes: list[Episode]) -> dict[str, Any]:
     out["roll_rmse_deg"] = float(np.mean([m["roll_rmse_deg"] for m in ms]))
     out["roll_max_deg"] = float(np.max([m["roll_max_deg"] for m in ms]))
     out["torque_rms_nm"] = float(np.mean([m["torque_rms_nm"] for m in ms]))
+    out["torque_max_nm"] = float(np.max([m["torque_max_nm"] for m in ms]))
     out["falls"] = int(sum(m["fell"] for m in ms))
     out["fell"] = out["falls"] > 0
     if ms[0]["estimation_rmse"] is not None:

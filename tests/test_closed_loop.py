@@ -6,8 +6,11 @@ bounded estimation error: |phi_hat - phi| < 2 deg and |vy_hat - vy| < 0.2 m/s at
 sample (the roll error bound is twice the 1 deg tracking target; 0.2 m/s is 10 % of
 the lateral velocity a 45 deg lean at 33 m/s would need). The full-state bound is
 :class:`assist.lqg.TrackingLQR` on the true state (with the TS controller's reference
-feedforward), and no output-feedback controller may beat it, or the TS design's own
-state feedback on the true state, by more than 10 %.
+feedforward), and on the double lane change at 50 km/h no output-feedback controller may
+beat it, or the TS design's own state feedback on the true state, by more than 10 %. (They
+bound their own feedback laws, not every law: at 100 km/h, noise-free, the TS loop beats
+its state feedback by 12 % and the LQR by 7 %, the observer's dynamics happening to help
+on that reference; with noise both bounds win clearly.)
 """
 
 from __future__ import annotations
@@ -176,6 +179,26 @@ def test_evaluate_cli_json(tmp_path):
     d = json.loads(js.read_text())
     assert {"roll_rmse_deg", "roll_max_deg", "torque_rms_nm", "torque_max_nm", "fell", "estimation_rmse"} <= set(d)
     assert set(d["estimation_rmse"]) >= {"phi", "vy"} and math.isfinite(d["roll_rmse_deg"])
+
+
+def test_metrics_table_reports_every_estimated_state_and_the_torque_peak(tmp_path):
+    from assist.evaluate import metrics_table, plot_episode
+
+    lqg = run_episode("lqg", "slalom", noise_pct=5.0, seed=0)
+    lqr = run_episode("lqr", "slalom", noise_pct=5.0, seed=0)
+    rows = metrics_table([lqg.metrics(), lqr.metrics()]).splitlines()
+    head = [c.strip() for c in rows[0].strip("|").split("|")]
+    assert "torque peak N m" in head
+    assert [h.split()[0] for h in head if " est " in h] == ["phi", "delta", "vy", "r", "phi_dot", "delta_dot",
+                                                            "Fyf", "Fyr"]
+    cells = dict(zip(head, (c.strip() for c in rows[2].strip("|").split("|"))))
+    est = lqg.metrics()["estimation_rmse"]
+    assert float(cells["phi est deg"]) == pytest.approx(math.degrees(est["phi"]), rel=2e-3)
+    assert float(cells["Fyr est N"]) == pytest.approx(est["Fyr"], rel=2e-3)
+    assert float(cells["torque peak N m"]) == pytest.approx(np.abs(lqg.tau).max(), abs=0.06)
+    assert [c.strip() for c in rows[3].strip("|").split("|")][-8:] == ["-"] * 8  # the bound has no estimate
+    fig = plot_episode(lqg, tmp_path / "lqg.png", compare=[lqr])
+    assert (tmp_path / "lqg.png").stat().st_size > 0 and len(fig.axes) == 10
 
 
 def test_design_cli_json(tmp_path):
