@@ -681,6 +681,16 @@ def default_design(options: AdaptiveDesignOptions | None = None) -> AdaptiveObse
     return _cached(AdaptiveDesignOptions() if options is None else options)
 
 
+@lru_cache(maxsize=4)
+def _cached_kalman(options: AdaptiveDesignOptions) -> AdaptiveObserverDesign:
+    return kalman_design(options=options)
+
+
+def default_kalman_design(options: AdaptiveDesignOptions | None = None) -> AdaptiveObserverDesign:
+    """:func:`kalman_design` for ``options`` (default options), computed once per process and reused."""
+    return _cached_kalman(AdaptiveDesignOptions() if options is None else options)
+
+
 __all__ = [
     "AdaptiveDesignError",
     "AdaptiveDesignOptionError",
@@ -691,6 +701,7 @@ __all__ = [
     "DEFAULT_PROCESS_STD",
     "LipschitzBound",
     "default_design",
+    "default_kalman_design",
     "design_adaptive_observer",
     "kalman_design",
     "lipschitz_bound",

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from assist.risk.evaluation import KINDS, estimator_figures, make_case, run_case
+from assist.risk.evaluation import KINDS, WARNABLE_S, estimator_figures, make_case, run_case
 from assist.risk.offline import plot_risk, replay
 
 #: Monitor variants compared on the same estimator outputs: the default (caution also when the grip is
@@ -107,6 +107,13 @@ def summarise(rides: list[dict], variant: str = "default") -> dict:
                                             and e[lev]["late_s"] is not None]),
                 "first_event_lead_s": _stats([e[lev]["lead_s"] for e in first if e[lev]["lead_s"] is not None]),
             }
+        if kind.startswith("wet"):  # split by whether the patch began early enough to be seen (WARNABLE_S)
+            on = [(r["estimator"].get("onset_to_saturation_s"), r["events"][0]) for r in rs if r["events"]]
+            ok = [e for o, e in on if o is not None and o >= WARNABLE_S]
+            d["warnable"] = {"events": len(ok),
+                             "caution_0p5s": sum(1 for e in ok if (e["caution"]["lead_s"] or 0.0) >= 0.5),
+                             "lead_s": _stats([e["caution"]["lead_s"] for e in ok if e["caution"]["lead_s"] is not None]),
+                             "too_late_onset_to_saturation_s": _stats([o for o, _ in on if o is not None and o < WARNABLE_S])}
         minutes = sum(r["duration_s"] for r in rs) / 60.0
         d["false_alarms"] = None
         if kind.startswith("dry"):
@@ -193,6 +200,17 @@ def markdown(summary: dict, n: int) -> str:
             f"{c['detected']}/{ev} ({c['detected_0p5s']}) | {mm(c['lead_s'])} | "
             f"{g['detected']}/{ev} ({g['detected_0p5s']}) | {mm(g['lead_s'])} | {fa_s} | "
             f"{d['peak_true_utilisation_median']:.2f} / {d['peak_true_utilisation_max']:.2f} |")
+    for kind, d in summary.items():
+        w = d.get("warnable")
+        if w:
+            lines.append("")
+            lines.append(
+                f"{kind}: of the {w['events']} losses of grip that came at least {WARNABLE_S:g} s after the friction "
+                f"dropped, {w['caution_0p5s']} had a caution at least 0.5 s ahead (lead min / median "
+                f"{w['lead_s']['min']} / {w['lead_s']['median']} s); the other "
+                f"{w['too_late_onset_to_saturation_s']['n']} came {w['too_late_onset_to_saturation_s']['min']}-"
+                f"{w['too_late_onset_to_saturation_s']['max']} s after the drop (the patch began under loaded tires, "
+                f"in a corner): no warning that reads the tires can lead by 0.5 s there.")
     return "\n".join(lines) + "\n"
 
 

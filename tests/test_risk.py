@@ -7,6 +7,7 @@ the straight run of a ride, the true state the wrapper must not read.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -18,6 +19,7 @@ from assist.risk import (FrictionConfig, FrictionEstimate, PathAhead, RiskConfig
                          RiskWarningWrapper, assess_log, safe_curve_speed, safe_lean_angle, stiffness_to_friction)
 from assist.risk.evaluation import saturation_events, true_utilisation
 from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0
+from ptw_env.vehicle import REFERENCE_SCOOTER
 from assist.risk.offline import replay
 from assist.risk.pipeline import default_estimator
 from ptw_env.env import PTWRollEnv
@@ -62,7 +64,8 @@ def test_mu_hat_refuses_bad_stiffness(bad):
 
 
 def test_uncertainty_grows_while_not_excited_and_the_estimate_is_held():
-    fe = FrictionEstimate(FrictionConfig(walk=0.05))
+    """The lateral gate, for an estimator that drifts when unexcited (excitation_min = 1 m/s^2)."""
+    fe = FrictionEstimate(FrictionConfig(walk=0.05, excitation_min=1.0))
     for k in range(100):  # informed cornering at scale 0.5
         st = fe.update(0.01 * k, 0.5 * C0, 0.05 * C0, ay=3.0)
     assert st.informed and st.mu_hat == pytest.approx(0.45)
@@ -78,22 +81,31 @@ def test_uncertainty_grows_while_not_excited_and_the_estimate_is_held():
     assert np.all(np.diff(stds) >= 0) and stds[-1] == pytest.approx(math.sqrt(s0**2 + 0.05**2 * st.since_informed_s))
 
 
-def test_straight_riding_says_not_enough_excitation_with_simulator_truth(estimator):
-    """A ride's straight run-in: no lateral force, so the prior is kept; the lane change then informs."""
+def test_straight_riding_is_used_only_once_the_estimate_is_sure(estimator):
+    """A ride's straight run-in on a road of friction 0.6 (truth): at first the estimate is too uncertain
+    and the prior 0.9 is kept, saying so; on the straight the steering response to the rider's torque
+    then informs it, and the status says it rests on little lateral acceleration; it is honest there
+    (within 3 sigma of the truth at 95 % of the samples, not a guess); the lane change informs it by
+    lateral acceleration, and it stays near the truth."""
     sc = make_scenario("double_lane_change", run_in_s=6.0, duration_s=20.0)
     ride = ride_scenario(sc, effects=SAT, noise_pct=5.0, seed=3, friction=FrictionSchedule.constant(0.6))
     run = assess_log(ride.log, RiskPipeline(estimator))
     t = run.t
     straight = t < 5.5
-    true_ay = np.abs(ride.log.columns["x_Fyf"] + ride.log.columns["x_Fyr"]) / 303.31
+    true_ay = np.abs(ride.log.columns["x_Fyf"] + ride.log.columns["x_Fyr"]) / REFERENCE_SCOOTER.mass
     assert true_ay[straight].max() < 0.5  # truth: really straight (rider noise only)
+    a0 = run.assessments[0]
+    assert not a0.friction_informed and "not enough excitation" in a0.friction_status and a0.mu_hat == 0.9
     inf = run.series("friction_informed").astype(bool)
-    assert not inf[straight].any()
-    assert all("not enough lateral excitation" in a.friction_status for a, s in zip(run.assessments, straight) if s)
-    np.testing.assert_allclose(run.series("mu_hat")[straight], 0.9)  # the prior, not a guess
-    assert inf[~straight].any()  # the lane change does inform it
-    informed_mu = run.series("mu_hat")[inf]
-    assert abs(np.median(informed_mu) - 0.6) < 0.1  # to the true friction, far from the 0.9 prior
+    on_straight = inf & straight
+    assert on_straight.any()
+    assert all("little lateral acceleration" in a.friction_status
+               for a, s in zip(run.assessments, on_straight) if s)
+    mu, sd = run.series("mu_hat"), run.series("mu_std")
+    assert np.mean(np.abs(mu[on_straight] - 0.6) <= 3 * sd[on_straight]) >= 0.95
+    turning = [a for a, s in zip(run.assessments, ~straight) if s and a.friction_status.startswith("informed (")]
+    assert turning  # the lane change informs it by lateral acceleration
+    assert abs(np.median(mu[inf]) - 0.6) < 0.05
 
 
 # ------------------------------------------------------------------ formulas
@@ -125,7 +137,9 @@ def test_grip_runs_out_at_the_safe_speed_in_the_simulator():
 
 # ------------------------------------------------------------------ hysteresis
 def _levels(u: np.ndarray, cfg: RiskConfig) -> np.ndarray:
-    mon = RiskMonitor(cfg)
+    """Levels for a front-tire utilisation ``u``; the riding-style caution is switched off (it would see
+    the high lateral demand itself and hold a caution, which is not what these tests look at)."""
+    mon = RiskMonitor(dataclasses.replace(cfg, style_enter=1e3, style_exit=1e3))
     fz = mon.fz
     out = []
     for k, uk in enumerate(u):  # informed, mu_hat = 0.45; front force sets the utilisation
@@ -137,21 +151,23 @@ def _levels(u: np.ndarray, cfg: RiskConfig) -> np.ndarray:
 def test_no_chattering_around_a_threshold():
     t = np.arange(2000) * 0.01
     rng = np.random.default_rng(0)
-    u = 0.8 + 0.05 * np.sin(2 * np.pi * 3.0 * t) + 0.01 * rng.normal(size=t.size)  # around caution_enter
+    c_in = RiskConfig().caution_enter
+    u = c_in + 0.05 * np.sin(2 * np.pi * 3.0 * t) + 0.01 * rng.normal(size=t.size)  # around caution_enter
     u[:100] = 0.3  # starts safe
     lv = _levels(u, RiskConfig())
-    assert np.count_nonzero(np.diff(lv)) == 1 and lv[-1] == 1  # enters once, stays (exit at 0.7)
-    plain = _levels(u, RiskConfig(caution_exit=0.8, danger_exit=1.0, min_dwell_s=0.0))
+    assert np.count_nonzero(np.diff(lv)) == 1 and lv[-1] == 1  # enters once, stays (exit 0.1 lower)
+    plain = _levels(u, RiskConfig(caution_exit=c_in, danger_exit=1.0, min_dwell_s=0.0))
     assert np.count_nonzero(np.diff(plain)) > 50  # without hysteresis it would chatter
 
 
 def test_dwell_limits_changes_when_the_signal_crosses_both_thresholds():
     t = np.arange(3000) * 0.01
-    u = 0.75 + 0.15 * np.sign(np.sin(2 * np.pi * 4.0 * t))  # 0.6 <-> 0.9 at 4 Hz
-    lv = _levels(u, RiskConfig(min_dwell_s=1.0))
+    c = RiskConfig(min_dwell_s=1.0)
+    u = 0.5 * (c.caution_enter + c.caution_exit) + 0.15 * np.sign(np.sin(2 * np.pi * 4.0 * t))  # across both, 4 Hz
+    lv = _levels(u, c)
     changes = np.flatnonzero(np.diff(lv))
     drops = [k for k in changes if lv[k + 1] < lv[k]]
-    assert len(drops) <= 30  # at most one drop per second of the 30 s
+    assert 10 <= len(drops) <= 30  # it does drop, at most once per second of the 30 s
     enter = np.flatnonzero(np.diff(lv) > 0)
     for k in drops:  # every drop comes at least the dwell time after the level was entered
         assert (k - enter[enter <= k].max()) * 0.01 >= 1.0 - 1e-9
@@ -160,15 +176,27 @@ def test_dwell_limits_changes_when_the_signal_crosses_both_thresholds():
 def test_levels_and_reasons_follow_the_risk_index():
     mon = RiskMonitor()
     fz = mon.fz
-    path = PathAhead(np.array([0.0, 30.0, 60.0]), np.array([0.0, 1 / 40, 1 / 40]))
+    path = PathAhead(np.array([0.0, 30.0, 60.0]), np.array([0.0, 1 / 80, 1 / 80]))
     a = mon.update(0.0, 0.5 * C0, 0.02 * C0, vx=12.0, ay=2.0, forces=(0.2 * fz[0], 0.2 * fz[1]), path=path)
     assert a.level == "safe" and a.reason.startswith("safe:")
+    # the rider has been cornering at 0.5 g on a dry road; the grip then drops to 0.45 on a straight: the
+    # usual riding would need 111 % of it (> the 70 % margin): caution at once, no curve in sight yet
+    style = RiskMonitor()
+    for k in range(600):  # 3 s of cornering at 0.5 g, then 3 s straight, on the dry road
+        style.update(0.01 * k, C0, 0.02 * C0, vx=15.0, ay=0.5 * G if k < 300 else 0.0, forces=None, path=None)
+    assert style.last.level == "safe" and style.last.usual_demand == pytest.approx(0.5, rel=0.02)
+    b = style.update(6.0, 0.5 * C0, 0.02 * C0, vx=15.0, ay=0.0, forces=None, path=None)
+    assert b.level == "caution" and "low for your riding" in b.reason and "0.50 g" in b.reason
+    assert b.utilisation_usual == pytest.approx(b.usual_demand / b.mu_hat)
+    for k in range(1, 6001):  # 60 s of gentle riding later the old style is forgotten and the caution lifts
+        b = style.update(6.0 + 0.01 * k, 0.5 * C0, 0.02 * C0, vx=15.0, ay=0.0, forces=None, path=None)
+    assert b.level == "safe"
     a = mon.update(0.01, 0.5 * C0, 0.02 * C0, vx=12.0, ay=2.0, forces=(0.4 * fz[0], 0.2 * fz[1]), path=path)
     assert a.level == "caution" and "front tire uses 89 %" in a.reason
     fast = PathAhead(np.array([0.0, 5.0, 10.0]), np.array([0.0, 1 / 40, 1 / 40]))
     a = mon.update(0.02, 0.5 * C0, 0.02 * C0, vx=16.0, ay=2.0, forces=(0.1 * fz[0], 0.1 * fz[1]), path=fast)
     assert a.level == "danger" and "next curve (R 40 m" in a.reason and "safe speed" in a.reason
-    assert a.safe_speed_next_curve == pytest.approx(safe_curve_speed(0.45, 1 / 40, 0.8), rel=1e-3)
+    assert a.safe_speed_next_curve == pytest.approx(safe_curve_speed(0.45, 1 / 40, RiskConfig().margin), rel=1e-3)
 
 
 def test_monitor_refuses_bad_input_with_a_clear_message():
@@ -294,5 +322,5 @@ def test_offline_replay_gives_the_same_assessments(wet_log, estimator):
     np.testing.assert_array_equal(again.series("risk_index"), run.series("risk_index"))
     assert run.level_code.max() > 0
     deaf = replay(run, RiskMonitor(RiskConfig(caution_enter=1e3, caution_exit=1e3, danger_enter=1e3,
-                                              danger_exit=1e3, confirm_sigmas=0.0)))
+                                              danger_exit=1e3, style_enter=1e3, style_exit=1e3, confirm_sigmas=0.0)))
     assert deaf.level_code.max() == 0  # the replay really uses the other monitor

@@ -56,6 +56,9 @@ from ptw_env.vehicle import G, REFERENCE_SCOOTER
 EVAL_EFFECTS = "tire_saturation:mu_peak=0.9"
 #: An axle saturates when |F_ss| reaches this fraction of Fmax.
 SATURATION_FRACTION = 0.95
+#: A friction drop that leaves less than this between its onset and the saturation it causes [s] cannot be
+#: warned 0.5 s ahead by reading the tires: ~0.3-0.5 s of lateral force to see it, plus the 0.5 s lead.
+WARNABLE_S = 1.0
 #: Ride types of :func:`make_case`.
 KINDS = ("dry", "wet", "dry_long", "wet_long", "too_fast")
 
@@ -319,7 +322,9 @@ def estimator_figures(res: CaseResult, rel_tol: float = 0.2, excitation_g: float
     * for a friction drop (wet patch): ``excitation_s``, the time from the drop to the first true
       axle force ``|F_k| >= excitation_g Fz_k`` on the new surface; ``detect_s``, from that instant
       to ``mu_hat`` within ``rel_tol`` of the new friction; ``before_saturation_s``, from detection
-      to the next saturation event (NaN if none).
+      to the next saturation event (NaN if none); ``onset_to_saturation_s``, from the drop to the first
+      saturation after it (under :data:`WARNABLE_S` the patch began under loaded tires: no warning
+      that reads the tires' response can lead by 0.5 s).
     """
     t = res.run.t
     mu_hat = res.run.series("mu_hat")
@@ -339,6 +344,8 @@ def estimator_figures(res: CaseResult, rel_tol: float = 0.2, excitation_g: float
         out["within_2sigma"] = float(np.mean(np.abs(mu_hat[m] - mu[m]) <= 2 * sd[m]))
     if change.size and mu[-1] < mu[0]:
         k0 = int(change[0]) + 1
+        after = res.events[res.events >= t[k0]]
+        out["onset_to_saturation_s"] = float(after[0] - t[k0]) if after.size else None
         fz = np.array([REFERENCE_SCOOTER.tires.Fzf, REFERENCE_SCOOTER.tires.Fzr])
         load = np.max(np.abs(res.ride.states[:, 6:8]) / fz, axis=1)
         exc = np.flatnonzero((np.arange(len(t)) >= k0) & (load >= excitation_g))

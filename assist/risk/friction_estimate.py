@@ -20,19 +20,28 @@ The second term of ``sigma_r^2`` is the disagreement between the four
 ratios, which a pure friction change would make equal: it carries the
 estimator's bias into the uncertainty instead of hiding it.
 
-Lateral excitation (no excitation: say so, do not guess)
--------------------------------------------------------
-Stiffness is only observable while the tires carry lateral force. The
-excitation is ``E = max(|LP(a_y)|, |LP(g F_f / Fz_f)|, |LP(g F_r / Fz_r)|)``:
+Excitation (not enough: say so, do not guess)
+---------------------------------------------
+Stiffness is only observable while the tires carry lateral force -- from the
+rider's steering torque on a straight (the steer and roll response to a known
+torque depends on the front tire: the default estimator of
+:mod:`assist.risk.pipeline` reads a friction drop there within seconds) or,
+far more, in a turn. An estimator whose reported standard deviation follows
+its information (the sensitivity law's ``Gamma`` grows by the random walk
+when nothing excites the tires, and shrinks when something does) needs no
+other gate: the estimate is used while ``sigma_r <= max_informed_std``
+(0.25) and the status says how little lateral acceleration it rests on. For
+an estimator whose std does not tell (it drifts unexcited), a lateral gate
+can be added: ``excitation_min`` (0 by default; 1.0 m/s^2, about 0.1 g, for
+such an estimator). The excitation is ``E = max(|LP(a_y)|, |LP(g F_f / Fz_f)|, |LP(g F_r / Fz_r)|)``:
 the measured lateral acceleration and, when the estimator gives them, the
 estimated axle forces over the static axle loads (the front force of a
 counter-steer comes before the net ``a_y``), each through a first-order
 low-pass of time constant ``excitation_tau_s`` (0.3 s; it takes the
 sensor noise, 0.25 m/s^2 at 5 %, down to ~0.05 m/s^2). The raw estimate is
-*used* only while ``E >= excitation_min`` (1.0 m/s^2, about 0.1 g, a fifth of
-normal-pace cornering) and ``sigma_r <= max_informed_std`` (0.25); then
-``mu_hat = mu_raw``, ``sigma = sigma_raw``. Otherwise the status is "not enough
-lateral excitation", ``mu_hat`` keeps the last informed value (the prior
+*used* only while ``E >= excitation_min`` and ``sigma_r <= max_informed_std``;
+then ``mu_hat = mu_raw``, ``sigma = sigma_raw``. Otherwise the status says
+"not enough ... excitation", ``mu_hat`` keeps the last informed value (the prior
 ``prior_mu`` = 0.9 +- ``prior_std`` before any) and its uncertainty grows as a
 random walk, ``sigma^2 = sigma_last^2 + q^2 (t - t_last)`` (road friction can
 change while nothing is measured; ``q`` = ``walk`` = 0.02 /sqrt(s), the
@@ -47,13 +56,16 @@ Examples
 >>> import numpy as np
 >>> fe = FrictionEstimate()
 >>> c0 = np.array([22486.0, 1063.8, 20178.0, 644.36])
->>> st = fe.update(0.0, 0.5 * c0, 0.05 * c0, ay=0.0)        # straight: not informed
+>>> st = fe.update(0.0, 0.9 * c0, 0.8 * c0, ay=0.0)         # nothing known yet: the prior
 >>> st.informed, st.mu_hat, st.status
-(False, 0.9, 'not enough lateral excitation (|a_y| 0.00 m/s^2 < 1.00)')
+(False, 0.9, 'not enough excitation: the stiffness estimate is too uncertain (+-0.36 in mu)')
+>>> st = fe.update(0.01, 0.5 * c0, 0.05 * c0, ay=0.0)       # straight, but the steering response told
+>>> st.informed, round(st.mu_hat, 3), st.status
+(True, 0.45, 'informed by the steering response (little lateral acceleration, |a_y| 0.00 m/s^2)')
 >>> for k in range(100):
-...     st = fe.update(0.01 * k, 0.5 * c0, 0.05 * c0, ay=3.0)  # cornering: informed
->>> st.informed, round(st.mu_hat, 3), round(st.mu_std, 4)
-(True, 0.45, 0.0225)
+...     st = fe.update(0.02 + 0.01 * k, 0.5 * c0, 0.05 * c0, ay=3.0)  # cornering
+>>> st.informed, round(st.mu_hat, 3), round(st.mu_std, 4), st.status
+(True, 0.45, 0.0225, 'informed (|a_y| 2.89 m/s^2)')
 """
 
 from __future__ import annotations
@@ -71,6 +83,11 @@ _TP = REFERENCE_SCOOTER.tires
 NOMINAL_STIFFNESS = np.array([_TP.C_alpha_f0, _TP.C_gamma_f0, _TP.C_alpha_r0, _TP.C_gamma_r0])
 
 
+#: Lateral acceleration [m/s^2] above which a turn, not only the steering response, informs the estimate
+#: (about 0.1 g, a fifth of normal-pace cornering); below it the status says so.
+LATERAL_EXCITATION = 1.0
+
+
 class FrictionEstimateError(ValueError):
     """A stiffness, standard deviation or option the friction estimate cannot use."""
 
@@ -86,7 +103,8 @@ class FrictionConfig:
     prior_mu, prior_std : float
         Friction assumed before the first informed estimate, and its 1-sigma (default 0.9 +- 0.2).
     excitation_min : float
-        Lateral excitation ``E`` (module docstring) above which the estimate is used [m/s^2] (default 1.0).
+        Lateral excitation ``E`` (module docstring) above which the estimate is used [m/s^2] (default 0:
+        the estimator's own std decides; 1.0 for an estimator that drifts unexcited).
     excitation_tau_s : float
         Time constant of the excitation low-pass [s] (default 0.3).
     max_informed_std : float
@@ -100,7 +118,7 @@ class FrictionConfig:
     mu_ref: float = REFERENCE_FRICTION
     prior_mu: float = REFERENCE_FRICTION
     prior_std: float = 0.2
-    excitation_min: float = 1.0
+    excitation_min: float = 0.0
     excitation_tau_s: float = 0.3
     max_informed_std: float = 0.25
     walk: float = 0.02
@@ -229,7 +247,8 @@ class FrictionEstimate:
         if exc >= c.excitation_min and raw_std <= c.max_informed_std * c.mu_ref:
             self._mu, self._var_last, self._t_last = mu_raw, raw_std**2, t
             informed, since, std = True, 0.0, raw_std
-            status = f"informed (|a_y| {exc:.2f} m/s^2)"
+            status = (f"informed (|a_y| {exc:.2f} m/s^2)" if exc >= LATERAL_EXCITATION else
+                      f"informed by the steering response (little lateral acceleration, |a_y| {exc:.2f} m/s^2)")
         else:
             informed = False
             if self._t_last is None:  # the prior, until the first informed sample
@@ -240,7 +259,7 @@ class FrictionEstimate:
             if exc < c.excitation_min:
                 status = f"not enough lateral excitation (|a_y| {exc:.2f} m/s^2 < {c.excitation_min:.2f})"
             else:
-                status = f"stiffness estimate too uncertain (+-{raw_std:.2f} in mu)"
+                status = f"not enough excitation: the stiffness estimate is too uncertain (+-{raw_std:.2f} in mu)"
         self.state = FrictionState(t=t, mu_hat=float(self._mu), mu_std=float(std), mu_raw=float(mu_raw),
                                    raw_std=float(raw_std), informed=informed, excitation=float(exc),
                                    since_informed_s=float(since), status=status)

@@ -17,16 +17,27 @@ Quantities (``g`` = 9.81 m/s^2, ``mu_hat`` and its 1-sigma from
   force estimates: ``u = |a_y| / (mu_hat g)`` on both axles).
 * Utilisation of the path ahead (a navigation map's curvature ``kappa(d)`` at
   distance ``d`` ahead, over ``max(preview_min_m, v preview_s)``), at the speed
-  the rider can still reach there with comfortable braking ``a_c``:
+  the rider can still reach there with comfortable braking ``a_c`` (3 m/s^2),
   ``v(d)^2 = max(v^2 - 2 a_c d, 0)``, ``u_ahead = max_d v(d)^2 |kappa(d)| / (mu_hat g)``.
+* The rider's style: the usual cornering demand ``a_u`` = the largest 0.3 s
+  low-passed lateral acceleration of the last ``style_window_s`` (60 s), in g,
+  and its share of the estimated grip ``u_u = a_u / mu_hat``. A rider who
+  keeps the pace onto a wet patch will corner at ``a_u`` again: when ``u_u``
+  exceeds the margin the grip has dropped below the riding, which the
+  warning says as soon as the estimate knows it (on a straight too), before
+  the next curve is in the preview.
 * Maximum safe lean ``phi_safe = atan(m mu_hat)`` and safe speed for the next
   curve ``v_safe = sqrt(m mu_hat g / kappa_max)`` (``kappa_max``: the largest
-  ``|kappa|`` ahead), with the margin ``m`` = ``margin`` (0.8: use at most 80 %
-  of the estimated grip). ``phi_safe = atan(mu)`` is the steady-turn balance
-  ``tan(phi) = a_y / g`` at the friction limit.
+  ``|kappa|`` ahead), with the margin ``m`` = ``margin`` (0.7: a steady turn may
+  use at most 70 % of the estimated grip; the lean-in needs the rest: on the
+  wet-patch rides of :mod:`assist.risk.evaluation` a curve whose steady demand
+  is 75-80 % of the grip already saturates the front tire while the rider
+  leans in, and the estimate itself is good to a few %). ``phi_safe =
+  atan(mu)`` is the steady-turn balance ``tan(phi) = a_y / g`` at the friction limit.
 * Risk index ``rho = max(u_f, u_r, u_ahead)`` with ``mu_hat``; the same with the
   *confirmed* friction ``mu_low = max(mu_hat - k sigma, mu_floor)`` (``k`` =
-  ``confirm_sigmas`` = 2) is ``rho_low = rho mu_hat / mu_low``.
+  ``confirm_sigmas`` = 2) is ``rho_low = rho mu_hat / mu_low``; the style index
+  ``pi = u_u / m`` (>= 1: the usual cornering needs more than ``m`` of the grip).
 
 Levels, with hysteresis and a minimum dwell
 ------------------------------------------
@@ -34,17 +45,23 @@ Levels, with hysteresis and a minimum dwell
 level       enter when                                   leave when (and dwell met)
 ==========  ===========================================  ==========================
 danger      ``rho >= 1.0`` (demand exceeds estimated     ``rho < 0.9``
-            grip now or in the next curve)
-caution     ``rho >= 0.8`` (80 % of the estimated grip)  ``rho < 0.7`` and
-            or ``rho_low >= 1.0`` (grip not confirmed at  ``rho_low < 0.9``
-            2 sigma for the demand)
+            grip now, or in the next curve even with
+            comfortable braking)
+caution     ``rho >= 0.7`` (the margin: 70 % of the       ``rho < 0.6``,
+            estimated grip),
+            or ``pi >= 1`` (the rider's usual cornering    ``pi < 0.875`` and
+            needs more than ``m`` of the grip: slow       ``rho_low < 0.9``
+            down), or ``rho_low >= 1.0``
+            (grip not confirmed at 2 sigma)
 safe        otherwise
 ==========  ===========================================  ==========================
 
 A higher level is taken at once; a lower one only after the current level has
-lasted ``min_dwell_s`` (1 s) *and* the index is below the exit threshold, so a
-signal oscillating around a threshold gives at most one change per dwell
-time and none inside the hysteresis band. Every assessment carries a
+lasted ``min_dwell_s`` (1 s) *and* the index is below the exit threshold, also
+with the lowest ``mu_hat`` of the last ``min_dwell_s`` (an estimate that jitters
+up while the tires near their limit does not lift a warning), so a signal
+oscillating around a threshold gives at most one change per dwell time and
+none inside the hysteresis band. Every assessment carries a
 human-readable reason naming what governs it.
 
 References
@@ -61,14 +78,15 @@ Examples
 >>> path = PathAhead(distance=np.array([0.0, 20.0, 40.0]), kappa=np.array([0.0, 0.02, 0.02]))
 >>> a = mon.update(0.0, 0.5 * c0, 0.05 * c0, vx=20.0, ay=3.0, forces=(400.0, 550.0), path=path)
 >>> a.level, round(a.mu_hat, 2), round(math.degrees(a.max_safe_lean), 1), round(a.safe_speed_next_curve, 1)
-('danger', 0.45, 19.8, 13.3)
+('danger', 0.45, 17.5, 12.4)
 >>> print(a.reason)
-danger: next curve (R 50 m, 20 m ahead) needs 0.57 g at 16.7 m/s (60 km/h); estimated grip 0.45 +- 0.02: safe speed 13.3 m/s (48 km/h)
+danger: next curve (R 50 m, 20 m ahead) needs 0.57 g at 16.7 m/s (60 km/h); estimated grip 0.45 +- 0.02: safe speed 12.4 m/s (45 km/h)
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -101,7 +119,9 @@ class RiskConfig:
     Attributes
     ----------
     caution_enter, caution_exit, danger_enter, danger_exit : float
-        Risk-index thresholds [-] (0.8, 0.7, 1.0, 0.9).
+        Risk-index thresholds [-] (0.7, 0.6, 1.0, 0.9): caution at the margin's share of the grip.
+    style_enter, style_exit : float
+        Thresholds of the riding-style index ``pi`` [-] (1.0, 0.875).
     confirm_sigmas : float
         ``k`` of ``mu_low = mu_hat - k sigma`` (2).
     mu_floor : float
@@ -109,34 +129,43 @@ class RiskConfig:
     min_dwell_s : float
         Shortest time a level is held before a lower one is taken [s] (1.0).
     margin : float
-        Fraction of ``mu_hat`` used for the safe lean and the safe speed [-] (0.8).
+        Fraction of ``mu_hat`` a steady turn may use: the safe lean, the safe speed, and the
+        riding-style caution [-] (0.7).
     comfort_decel : float
         Braking the rider can still do before a curve [m/s^2] (3.0, the urban scenario's).
+    style_window_s : float
+        Window of the rider's usual cornering demand [s] (60).
     preview_s, preview_min_m : float
         Path-ahead horizon: ``max(preview_min_m, v preview_s)`` [s, m] (6 s, 30 m).
     kappa_straight : float
         Curvature below which the road ahead counts as straight [1/m] (1e-3, R > 1 km).
     """
 
-    caution_enter: float = 0.8
-    caution_exit: float = 0.7
+    caution_enter: float = 0.7
+    caution_exit: float = 0.6
     danger_enter: float = 1.0
     danger_exit: float = 0.9
+    style_enter: float = 1.0
+    style_exit: float = 0.875
     confirm_sigmas: float = 2.0
     mu_floor: float = 0.1
     min_dwell_s: float = 1.0
-    margin: float = 0.8
+    margin: float = 0.7
     comfort_decel: float = 3.0
+    style_window_s: float = 60.0
     preview_s: float = 6.0
     preview_min_m: float = 30.0
     kappa_straight: float = 1e-3
 
     def __post_init__(self) -> None:
-        for name in ("caution_enter", "caution_exit", "danger_enter", "danger_exit", "mu_floor", "margin",
+        for name in ("caution_enter", "caution_exit", "danger_enter", "danger_exit", "style_enter", "style_exit",
+                     "mu_floor", "margin", "style_window_s",
                      "preview_s", "preview_min_m", "kappa_straight"):
             _pos(f"RiskConfig.{name}", getattr(self, name))
         for name in ("confirm_sigmas", "min_dwell_s", "comfort_decel"):
             _pos(f"RiskConfig.{name}", getattr(self, name), allow_zero=True)
+        if self.style_exit > self.style_enter:
+            raise RiskInputError(f"RiskConfig needs style_exit <= style_enter, got {self.style_exit}, {self.style_enter}")
         if not (self.caution_exit <= self.caution_enter <= self.danger_enter and self.danger_exit <= self.danger_enter):
             raise RiskInputError("RiskConfig thresholds must satisfy caution_exit <= caution_enter <= danger_enter "
                                  f"and danger_exit <= danger_enter, got {self.caution_exit}, {self.caution_enter}, "
@@ -216,6 +245,11 @@ class RiskAssessment:
         ``|F_k| / (mu_hat Fz_k)`` now [-].
     utilisation_ahead : float
         Largest utilisation of the path ahead at reachable speed [-] (0 without a path).
+    usual_demand : float
+        The rider's cornering demand: the largest low-passed lateral acceleration of the last
+        ``style_window_s``, in g [-].
+    utilisation_usual : float
+        ``usual_demand / mu_hat`` [-]: what the rider's style would use of the estimated grip.
     risk_index, risk_index_low : float
         ``rho`` with ``mu_hat`` and with ``mu_low`` [-].
     max_safe_lean : float
@@ -239,6 +273,8 @@ class RiskAssessment:
     utilisation_front: float
     utilisation_rear: float
     utilisation_ahead: float
+    usual_demand: float
+    utilisation_usual: float
     risk_index: float
     risk_index_low: float
     max_safe_lean: float
@@ -306,12 +342,15 @@ class RiskMonitor:
         self.friction.reset()
         self._level = SAFE
         self._t_enter = -math.inf
+        self._mu_hist: deque[tuple[float, float]] = deque()
+        self._demand: deque[tuple[float, float]] = deque()
         self._reason = ""
         self.last: RiskAssessment | None = None
 
     # ------------------------------------------------------------------
     def _preview(self, vx: float, mu: float, path: PathAhead | None):
-        """``(u_ahead, i, v_reach, kappa_max)`` over the horizon, or zeros without a path."""
+        """``(u_ahead, where, v_reach, kappa_max)`` over the horizon (zeros without a path);
+        ``where = (distance, kappa, demand [g])`` of the most demanding point."""
         if path is None:
             return 0.0, None, vx, 0.0
         c = self.config
@@ -360,6 +399,13 @@ class RiskMonitor:
         u_ahead, where, v_reach, kmax = self._preview(vx, mu, path)
         rho = max(u_now, u_ahead)
         rho_low = rho * mu / mu_low
+        # the rider's style: the largest (0.3 s low-passed) lateral demand of the last style_window_s
+        self._demand.append((float(t), fr.excitation / G))
+        while self._demand and self._demand[0][0] < t - c.style_window_s:
+            self._demand.popleft()
+        usual = max(g_ for _, g_ in self._demand)
+        u_style = usual / mu
+        pace = u_style / c.margin
         v_safe = safe_curve_speed(mu, kmax, c.margin) if kmax > c.kappa_straight else math.inf
         lean = safe_lean_angle(mu, c.margin)
 
@@ -367,6 +413,7 @@ class RiskMonitor:
         cur = self._level
         d_th = c.danger_exit if cur == DANGER else c.danger_enter
         c_th = c.caution_exit if cur >= CAUTION else c.caution_enter
+        p_th = c.style_exit if cur >= CAUTION else c.style_enter
         grip = f"estimated grip {mu:.2f} +- {sd:.2f}"
         if where is not None and u_ahead >= u_now:
             d_i, k_i, dem = where
@@ -384,12 +431,28 @@ class RiskMonitor:
             target, reason = DANGER, f"danger: {what}; {grip}: {advice}"
         elif rho >= c_th:
             target, reason = CAUTION, f"caution: {what}; {grip}: {advice}"
+        elif pace >= p_th:
+            target, reason = CAUTION, (f"caution: {grip} is low for your riding: you have been cornering at "
+                                       f"{usual:.2f} g ({100 * u_style:.0f} % of it) in the last "
+                                       f"{c.style_window_s:g} s; take the next curves slower: {advice}")
         elif rho_low >= d_th:
             why = fr.status if not fr.informed else "the estimate is still uncertain"
             target, reason = CAUTION, (f"caution: grip not confirmed ({why}); {what}, "
                                        f"confirmed grip only {mu_low:.2f} ({grip})")
         else:
             target, reason = SAFE, (f"safe: {what}; {grip} ({fr.status})")
+        # a lower level also needs the grip to have stayed up: the indices with the lowest mu_hat of the
+        # last min_dwell_s must allow it too (the estimate jitters while the tires near their limit)
+        self._mu_hist.append((float(t), mu))
+        while self._mu_hist and self._mu_hist[0][0] < t - c.min_dwell_s:
+            self._mu_hist.popleft()
+        if target < cur:
+            f = mu / min(m_ for _, m_ in self._mu_hist)
+            lo_c = c.caution_exit if cur >= CAUTION else c.caution_enter
+            held = (DANGER if rho * f >= d_th else
+                    CAUTION if (rho * f >= lo_c or pace * f >= p_th) else SAFE)
+            if held > target:
+                target, reason = min(held, cur), self._reason.split(" [held")[0]
         if target > cur or (target < cur and t - self._t_enter >= c.min_dwell_s):
             self._level, self._t_enter = target, t
             self._reason = reason
@@ -401,7 +464,7 @@ class RiskMonitor:
             t=float(t), level=LEVELS[self._level], level_code=self._level, reason=self._reason, mu_hat=mu,
             mu_std=sd, mu_low=mu_low, friction_informed=fr.informed, friction_status=fr.status,
             excitation=fr.excitation, utilisation_front=float(u_axle[0]), utilisation_rear=float(u_axle[1]),
-            utilisation_ahead=u_ahead, risk_index=rho, risk_index_low=rho_low, max_safe_lean=lean,
+            utilisation_ahead=u_ahead, usual_demand=usual, utilisation_usual=u_style, risk_index=rho, risk_index_low=rho_low, max_safe_lean=lean,
             safe_speed_next_curve=v_safe, next_curve_distance=math.nan if where is None else where[0],
             next_curve_kappa=math.nan if where is None else where[1],
         )
