@@ -59,6 +59,8 @@ def _add_episode_args(p: argparse.ArgumentParser, controller: bool = True) -> No
 
     if controller:
         p.add_argument("--controller", choices=CONTROLLERS, default="ts")
+        p.add_argument("--policy", default=None, metavar="POLICY.zip",
+                       help="rl: a policy file from 'ptw-assist train-rl' (default: the shipped policy)")
     p.add_argument("--scenario", choices=scenario_names(), default=DEFAULT_DEMO["scenario"])
     p.add_argument("--speed", type=float, default=None, metavar="KMH", help="cruise speed [km/h] where the scenario has one")
     p.add_argument("--noise", type=_nonneg, default=DEFAULT_DEMO["noise"], metavar="PCT",
@@ -79,6 +81,10 @@ def _episode(a: argparse.Namespace, controller: str):
     from .evaluate import run_episode
 
     opts = _speed_range(a) if controller in ("ts", "ts_state") else {}
+    if getattr(a, "policy", None) is not None:
+        if controller != "rl":
+            raise CLIError(f"--policy applies to --controller rl, not {controller}")
+        opts["policy"] = a.policy
     return run_episode(controller, a.scenario, speed_kmh=a.speed, noise_pct=a.noise, seed=a.seed,
                        effects=Effects.parse(a.effect), controller_options=opts)
 

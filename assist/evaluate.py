@@ -14,7 +14,9 @@ Controllers (``--controller`` of ``ptw-assist evaluate``):
   with the TS controller's reference pre-filter and model-inverse feedforward,
   on the *true* state ``info["state"]`` and speed (same gains as the LQG).
   Not the simulated rider's gentler LQR (:mod:`ptw_env.rider`);
-* ``rl``: a stable-baselines3 policy, when one is available.
+* ``rl``: a stable-baselines3 policy from the noisy observation only (:mod:`assist.rl`;
+  the shipped ``assist/policies/ppo_roll.zip`` by default, another file with
+  ``controller_options={"policy": PATH}``); needs the ``[rl]`` extra.
 
 Every controller is designed on the environment's *prior* model
 (``env.get_prior()``, its dynamic ``prior_effects`` included), never on the

@@ -195,6 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     import assist.diagnose_cli  # noqa: F401  (registers diagnose)
     import assist.estimate_cli  # noqa: F401  (registers estimate)
     import assist.risk_cli  # noqa: F401  (registers risk)
+    import assist.rl_cli  # noqa: F401  (registers train-rl)
 
     parser = argparse.ArgumentParser(
         prog="ptw-assist",
