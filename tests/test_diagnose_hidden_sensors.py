@@ -1,5 +1,5 @@
-"""Hidden sensor effects and no effect (issue 7); pairs and an effect outside effects.md are in
-``test_diagnose_hidden_pair.py``.
+"""Hidden sensor effects and no effect (issue 7); pairs are in ``test_diagnose_hidden_pair.py``, effects
+outside effects.md in ``test_diagnose_outside.py``.
 
 45 s rides with noise on; the sensor effects are applied by :class:`ptw_env.sensors.SensorModel`
 in the ride and fitted on the measurement side by the diagnosis.

@@ -1,7 +1,9 @@
 """Exhaustive sweep (slow): every cause of effects.md at several sizes and both signs, two scenarios,
 full 90 s rides (and an 87 s track lap), sensor noise on (the reference logs' sensors, and 5 % of range),
 no-effect rides, pairs, and a log without the roll column. Each must be named with every size within
-25 % of the truth and explained. Run with ``pytest -m slow tests/test_diagnose_sweep.py``.
+25 % of the truth (of the effect's size, its deviation from nominal: ``test_diagnose.effect_size``) and
+explained. Effects outside effects.md in the other scenario than ``test_diagnose_outside.py``'s must come
+out unexplained, located where they act. Run with ``pytest -m slow tests/test_diagnose_sweep.py``.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import pytest
 from assist.diagnose import diagnose
 from ptw_env.ride import ride_scenario
 from test_diagnose import assert_found
+from test_diagnose_outside import OTHER_SCENARIO, case_ids, diagnose_outside
 
 pytestmark = pytest.mark.slow
 
@@ -74,3 +77,9 @@ def test_sweep_log_without_roll_column(effects):
     log = ride_scenario("urban", effects=effects, seed=205).log
     log = type(log)(t=log.t, columns={k: v for k, v in log.columns.items() if k != "roll"}, meta={})
     assert_found(diagnose(log, progress=False), effects)
+
+
+@pytest.mark.parametrize("kind, scenario, seed", OTHER_SCENARIO, ids=case_ids(OTHER_SCENARIO))
+def test_sweep_effect_outside_the_table(kind, scenario, seed):
+    """The effects of ``test_diagnose_outside.py`` in the other scenario (45 s rides)."""
+    diagnose_outside(kind, scenario, seed)

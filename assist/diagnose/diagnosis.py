@@ -94,11 +94,25 @@ def diagnose(
         Simulated but unscored start of each window [s] (default 0.1); also the
         largest sensor delay that can be fitted.
     pairs : bool or "all"
-        Also fit pairs of causes: ``True`` (default) by forward selection (the best
-        single cause with the next five and with three a score test picks, and the
-        pairs among the three best;
-        :meth:`assist.diagnose.hypotheses.HypothesisFitter.fit_all`), ``"all"`` every
-        pair, ``False`` none.
+        Also fit pairs of causes: ``True`` (default) by forward selection, ``"all"``
+        every one of the 45 pairs, ``False`` none.
+
+        Forward selection (:meth:`assist.diagnose.hypotheses.HypothesisFitter.fit_all`):
+        only causes that alone improve the fitting windows by at least
+        :data:`~assist.diagnose.hypotheses.PAIR_MIN` (noise variances per value) take
+        part; the best of them is paired with the next five and with the three that a
+        score test says would add most to it, and the pairs among the three best are
+        fitted (at most 9 pairs; 6 on a log with one clear cause). It is the default
+        because all 45 pairs cost about 3.4 times the simulation (83 M instead of
+        25 M vehicle-steps on a 90 s urban log with a bank, 40 M instead of 10 M on
+        the nominal reference log), which takes a diagnosis past the 60 s target per
+        90 s log on 2 cores (``scripts/bench_diagnose.py --pairs all``). What it can
+        miss: two effects that cancel each other so that no cause improves the fit
+        alone; and a pair of two causes of which neither is the best single cause,
+        nor are both among the three best, while the score test does not rank the
+        second among the three that add most to the best. The pairs of the tests
+        (road bank + gyro bias, tire stiffness + payload:
+        ``tests/test_diagnose_hidden_pair.py``, the slow sweep) are found.
     vehicle : Vehicle, optional
         The nominal vehicle (default the reference scooter).
     encoder_quantum : float, None or "auto"
@@ -192,10 +206,11 @@ def diagnose(
     explained = bool(np.all(ratio <= 1.0 + selection.EXPLAINED_TOL))
     verdict, rv = best, ra[1]
     if not explained and not best.supported:
-        # closest candidate: the best-scoring hypothesis that gains anything
-        cands = [r for r in selection.order(ranked) if r.name != "none" and r.gain > 0]
+        # closest candidate: of the hypotheses that gain anything, the one with the largest
+        # penalised improvement (none of them is accepted, so their scores do not say this)
+        cands = [r for r in ranked if r.name != "none" and r.gain > 0]
         if cands:
-            verdict = cands[0]
+            verdict = max(cands, key=lambda r: (r.penalised, -r.k))
             rv = refined(names.index(verdict.name))[0][1]
             ratio = ratio_to_noise(rv)
     hv = names.index(verdict.name)
@@ -208,7 +223,7 @@ def diagnose(
     hyp_json = [
         {"causes": to_causes(r.causes, fits[r.name].z), "gain": round(r.gain, 4), "score": round(r.score, 4),
          "improvement": round(r.improvement, 4), "trimmed_improvement": round(r.trimmed, 4),
-         "supported": bool(r.supported)}
+         "support_margin": round(r.margin, 4), "supported": bool(r.supported)}
         for r in order
     ]
     rms_0, rms_hv = (np.sqrt(((rt[h] * replay.sigma) ** 2).sum(axis=(0, 1)) / counts.sum(axis=0)) for h in (0, hv))
@@ -221,9 +236,13 @@ def diagnose(
                        "pairs": sum(len(f.hypothesis.causes) == 2 for f in fits.values()),
                        "pairs_rule": _pairs_rule(pairs)},
         "encoder_quantum_rad": None if quantum is None else sig(quantum),
-        "score": f"held-out improvement in noise variances - {selection.PARAM_PENALTY} per parameter",
-        "support": f"held-out improvement >= {selection.MIN_IMPROVEMENT} noise variances per value, and >= half "
-                   f"that without the {selection.TRIM:.0%} most improved held-out windows (at least one)",
+        "score": f"accepted (supported) hypotheses: held-out improvement in noise variances - "
+                 f"{selection.PARAM_PENALTY} per parameter (> 0); none: 0; the others: their support margin "
+                 f"(< 0, how far they fall short of acceptance); hypotheses are listed by this score",
+        "support": f"held-out improvement >= {selection.MIN_IMPROVEMENT} noise variances per value, >= half "
+                   f"that without the {selection.TRIM:.0%} most improved held-out windows (at least one), "
+                   f"penalised improvement > 0, and for a pair the same over each of its single causes; "
+                   f"support_margin is the smallest margin of these tests",
         "explained": f"held-out RMS residual <= {1 + selection.EXPLAINED_TOL:g} x noise in every channel",
         "notes": notes,
     }

@@ -12,8 +12,9 @@ JSON structure (diagnose.md; keys beyond the contract are marked *extra*)::
                   "rmse": {channel: ...},
                   "gain_channels": {channel: ...},   # extra: the gain per channel
                   "residual": {...}},                # only when explained is false
-      "hypotheses": [{"causes": [...], "gain": ..., "score": ...,
-                      "improvement": ..., "trimmed_improvement": ..., "supported": bool}, ...],   # best first
+      "hypotheses": [{"causes": [...], "gain": ..., "score": ...,  # sorted by score, best first
+                      "improvement": ..., "trimmed_improvement": ...,    # extra: the evidence
+                      "support_margin": ..., "supported": bool}, ...],   # (assist.diagnose.selection)
       "noise": {channel: ...},                       # extra: the noise levels used
       "method": {...}                                # extra: windows, split, criteria
     }

@@ -1,4 +1,4 @@
-"""Rank the fitted hypotheses on held-out windows and pick the verdict.
+r"""Rank the fitted hypotheses on held-out windows and pick the verdict.
 
 Every hypothesis ``h`` (fitted on the fitting windows) is replayed on the
 held-out windows, each with its own least-squares initial state. With
@@ -10,26 +10,43 @@ over ``n`` scored values) and ``S_0`` that of the nominal model:
   worse), overall and per channel;
 * **improvement** ``Delta_h = (S_0 - S_h) / n``: the held-out mean-square
   error removed, in units of the noise variance;
-* **score** ``= Delta_h - PARAM_PENALTY k_h`` with ``k_h`` free parameters: the
-  ranking (``none`` scores 0). The penalty plays the role of BIC's
-  ``k ln n``: BIC's ``ln n`` per parameter assumes independent residuals,
-  but replay residuals are correlated over a window (initial-state fit,
-  quantisation, speed reconstruction), which inflates every fitted
-  improvement; a fixed price per parameter in noise units does not depend on
-  the sampling rate or the log's length.
-* **support**: a hypothesis can be the verdict only if its held-out
-  improvement is at least :data:`MIN_IMPROVEMENT` (an effect whose RMS is a
-  sizeable fraction of the noise) *and* does not rest on a few windows: with
-  the :data:`TRIM` share of the held-out windows that improve most left out
-  (at least one window), the
-  improvement of the others is still at least half of that. (A cause that
-  only fits one peculiar manoeuvre fails; an effect that shows only in some
-  manoeuvres, tire saturation in tight turns, say, passes: a rank test over
-  windows would count every window where it cannot show as evidence against
-  it.) A pair must, in addition, beat each of its two single causes in the
-  same way, else its better single cause stands.
+* **penalised improvement** ``Delta_h - PARAM_PENALTY k_h`` with ``k_h`` free
+  parameters. The penalty plays the role of BIC's ``k ln n``: BIC's ``ln n``
+  per parameter assumes independent residuals, but replay residuals are
+  correlated over a window (initial-state fit, quantisation, speed
+  reconstruction), which inflates every fitted improvement; a fixed price per
+  parameter in noise units does not depend on the sampling rate or the log's
+  length.
+* **support**: a hypothesis is *accepted* (can be the verdict) only if its
+  held-out improvement is at least :data:`MIN_IMPROVEMENT` (an effect whose
+  RMS is a sizeable fraction of the noise), does not rest on a few windows
+  (with the :data:`TRIM` share of the held-out windows that improve most left
+  out, at least one window, the improvement of the others is still at least
+  half of :data:`MIN_IMPROVEMENT`), and pays for its parameters (penalised
+  improvement > 0). (A cause that only fits one peculiar manoeuvre fails; an
+  effect that shows only in some manoeuvres, tire saturation in tight turns,
+  say, passes: a rank test over windows would count every window where it
+  cannot show as evidence against it.) A pair must, in addition, beat each of
+  its two single causes in the same way (improvement and trimmed improvement
+  *over that single cause*), else its better single cause stands. Each test is
+  a margin ``m_i`` (noise variances per value) that must be ``>= 0``; the
+  **support margin** is their minimum.
+* **score**, the one number hypotheses are ranked by (``none`` scores 0):
 
-The verdict is the supported hypothesis with the best score, else ``none``.
+  .. math::
+
+      \text{score}_h = \begin{cases}
+          \Delta_h - \text{PARAM\_PENALTY}\, k_h > 0 & \text{accepted,} \\
+          \min(0, \min_i m_{h,i}) \le 0 & \text{not accepted,}
+      \end{cases}
+
+  so the accepted hypotheses come first, by penalised improvement, then
+  ``none``, then the others by how far they fall short of acceptance (a pair
+  that fits as well as its better single cause but adds nothing to it scores
+  just below 0, however large its improvement over nominal). The report lists
+  them in this order (ties: fewer parameters, then the name).
+
+The verdict is the best-scoring hypothesis: an accepted one, else ``none``.
 It *explains* the log when its held-out residual is at the noise level:
 every channel's RMS residual within ``1 + EXPLAINED_TOL`` of the noise
 level (:mod:`assist.diagnose.noise`), i.e. what is left beyond the noise
@@ -59,17 +76,19 @@ EXPLAINED_TOL = 0.06
 
 @dataclass(frozen=True)
 class Ranked:
-    """One hypothesis's held-out evidence."""
+    """One hypothesis's held-out evidence (module docstring)."""
 
     name: str
     causes: tuple[str, ...]
     k: int
     gain: float
     gain_channels: dict[str, float]
-    improvement: float
+    improvement: float  #: held-out mean-square improvement over nominal [noise variances per value]
     trimmed: float  #: improvement without the most improved held-out windows (TRIM)
-    score: float
-    supported: bool
+    penalised: float  #: improvement - PARAM_PENALTY * k (0 for none)
+    margin: float  #: support margin: the smallest margin of the acceptance tests (>= 0: all pass)
+    score: float  #: the ranking key (module docstring)
+    supported: bool  #: accepted: can be the verdict
 
 
 def _trimmed(d: np.ndarray, n: np.ndarray) -> float:
@@ -83,58 +102,75 @@ def _trimmed(d: np.ndarray, n: np.ndarray) -> float:
     return float(d[keep].sum() / n[keep].sum())
 
 
-def _supported(d: np.ndarray, n: np.ndarray) -> tuple[float, float, bool]:
+def _margins(d: np.ndarray, n: np.ndarray) -> tuple[float, float, float]:
+    """Improvement, trimmed improvement and the support margin
+    ``min(imp - MIN_IMPROVEMENT, trimmed - MIN_IMPROVEMENT / 2)`` of per-window improvements ``d``."""
     imp = float(d.sum() / n.sum())
     tr = _trimmed(d, n)
-    return imp, tr, bool(imp >= MIN_IMPROVEMENT and tr >= 0.5 * MIN_IMPROVEMENT)
+    return imp, tr, min(imp - MIN_IMPROVEMENT, tr - 0.5 * MIN_IMPROVEMENT)
 
 
 def rank(names: list[str], causes: list[tuple[str, ...]], ks: list[int], S: np.ndarray, counts: np.ndarray,
          channels: tuple[str, ...]) -> list[Ranked]:
-    """Evidence of each hypothesis (module docstring); ``names[0]`` must be ``none``.
+    """Evidence and score of each hypothesis (module docstring); ``names[0]`` must be ``none``.
 
     Parameters
     ----------
+    names : list of str
+        Hypothesis names (``"a+b"`` for a pair).
+    causes : list of tuple of str
+        The causes of each hypothesis.
+    ks : list of int
+        Free parameters of each hypothesis.
     S : ndarray, shape (H, Wt, C)
         Held-out weighted sums of squares per hypothesis, window and channel.
     counts : ndarray, shape (Wt, C)
         Scored values per window and channel.
+    channels : tuple of str
+        The C channels.
+
+    Returns
+    -------
+    list of Ranked
+        In the order of ``names`` (:func:`order` sorts them by score).
     """
     nw = counts.sum(axis=1).astype(float)  # values per held-out window
     Sw = S.sum(axis=2)  # (H, Wt)
     S0 = float(Sw[0].sum())
     Sc0 = S[0].sum(axis=0)
+    by_name = {n: i for i, n in enumerate(names)}
     out = []
     for h, name in enumerate(names):
         Sh = float(Sw[h].sum())
         gain = 1.0 - math.sqrt(Sh / S0) if S0 > 0 else 0.0
         gc = {c: (1.0 - math.sqrt(float(S[h, :, i].sum()) / Sc0[i]) if Sc0[i] > 0 else 0.0)
               for i, c in enumerate(channels)}
-        imp, tr, ok = _supported(Sw[0] - Sw[h], nw)
-        score = 0.0 if h == 0 else imp - PARAM_PENALTY * ks[h]
-        out.append(Ranked(name, causes[h], ks[h], gain, gc, imp, tr if h else 0.0, score, ok and h > 0))
-    # a pair must also beat each of its single causes
-    by_name = {r.name: i for i, r in enumerate(out)}
-    for i, r in enumerate(out):
-        if len(r.causes) < 2 or not r.supported:
+        if h == 0:
+            out.append(Ranked(name, causes[h], ks[h], gain, gc, 0.0, 0.0, 0.0, 0.0, 0.0, False))
             continue
-        for c in r.causes:
-            j = by_name.get(c)
-            if j is not None and not _supported(Sw[j] - Sw[i], nw)[2]:
-                out[i] = dataclasses.replace(r, supported=False)
-                break
+        imp, tr, margin = _margins(Sw[0] - Sw[h], nw)
+        penalised = imp - PARAM_PENALTY * ks[h]
+        margin = min(margin, penalised)
+        if len(causes[h]) > 1:  # a pair must also beat each of its single causes
+            for c in causes[h]:
+                j = by_name.get(c)
+                if j is not None:
+                    margin = min(margin, _margins(Sw[j] - Sw[h], nw)[2])
+        ok = margin >= 0.0 and penalised > 0.0
+        score = penalised if ok else min(0.0, margin)
+        out.append(Ranked(name, causes[h], ks[h], gain, gc, imp, tr, penalised, margin, score, ok))
     return out
 
 
-def choose(ranked: list[Ranked]) -> Ranked:
-    """The verdict: the supported hypothesis with the best score, else ``none`` (``ranked[0]``)."""
-    sup = [r for r in ranked if r.supported]
-    return max(sup, key=lambda r: r.score) if sup else ranked[0]
-
-
 def order(ranked: list[Ranked]) -> list[Ranked]:
-    """Best first: supported before unsupported, then by score (ties: fewer parameters, name)."""
-    return sorted(ranked, key=lambda r: (not (r.supported or r.name == "none"), -r.score, r.k, r.name))
+    """Best first: by score (ties: fewer parameters, then the name); ``none`` leads the score-0 ties."""
+    return sorted(ranked, key=lambda r: (-r.score, r.k, r.name))
+
+
+def choose(ranked: list[Ranked]) -> Ranked:
+    """The verdict: the best-scoring hypothesis, an accepted one or else ``none`` (``ranked[0]``)."""
+    best = order(ranked)[0]
+    return best if best.supported else ranked[0]
 
 
 __all__ = ["Ranked", "rank", "choose", "order", "PARAM_PENALTY", "MIN_IMPROVEMENT", "TRIM", "EXPLAINED_TOL"]
