@@ -516,8 +516,8 @@ class RLAdapter:
         dt = float(self.policy.meta.get("dt", 0.01))
         if abs(env.dt - dt) > 1e-12:
             raise PolicyError(f"the policy runs at dt = {dt} s, the environment at {env.dt} s")
-        self._scale = self.policy.tau_max / (1.0 if env.normalize_action else 1.0)
-        self._normalized = env.normalize_action
+        self._normalized = env.normalize_action  # then the action is the policy's, else N m
+        self._enc = ObsEncoder.from_config(self.policy.encoder.config())  # own history: policies can be shared
         self._started = False
         self._a = 0.0
 
@@ -526,7 +526,7 @@ class RLAdapter:
         self._a = 0.0
 
     def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
-        enc = self.policy.encoder
+        enc = self._enc
         x = enc.step(obs, self._a) if self._started else enc.reset(obs)
         self._started = True
         self._a = self.policy.normalized_action(x)
