@@ -32,6 +32,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from assist.risk.evaluation import KINDS, WARNABLE_S, estimator_figures, make_case, run_case
 from assist.risk.offline import plot_risk, replay
@@ -84,7 +85,8 @@ def _stats(x: list[float]) -> dict:
 def summarise(rides: list[dict], variant: str = "default") -> dict:
     """Per ride type: rides, saturation events, detections and lead times, false alarms."""
     if variant != "default":
-        rides = [{**r["variants"][variant], "kind": r["kind"]} for r in rides]
+        # the variants differ in the monitor only: the estimator's figures are the ride's
+        rides = [{**r["variants"][variant], "kind": r["kind"], "estimator": r["estimator"]} for r in rides]
     out: dict = {}
     for kind in KINDS:
         rs = [r for r in rides if r["kind"] == kind]
@@ -204,13 +206,15 @@ def markdown(summary: dict, n: int) -> str:
         w = d.get("warnable")
         if w:
             lines.append("")
-            lines.append(
-                f"{kind}: of the {w['events']} losses of grip that came at least {WARNABLE_S:g} s after the friction "
-                f"dropped, {w['caution_0p5s']} had a caution at least 0.5 s ahead (lead min / median "
-                f"{w['lead_s']['min']} / {w['lead_s']['median']} s); the other "
-                f"{w['too_late_onset_to_saturation_s']['n']} came {w['too_late_onset_to_saturation_s']['min']}-"
-                f"{w['too_late_onset_to_saturation_s']['max']} s after the drop (the patch began under loaded tires, "
-                f"in a corner): no warning that reads the tires can lead by 0.5 s there.")
+            late = w["too_late_onset_to_saturation_s"]
+            text = (f"{kind}: of the {w['events']} losses of grip that came at least {WARNABLE_S:g} s after the "
+                    f"friction dropped, {w['caution_0p5s']} had a caution at least 0.5 s ahead (lead min / median "
+                    f"{w['lead_s']['min']} / {w['lead_s']['median']} s)")
+            if late["n"]:
+                text += (f"; the other {late['n']} came {late['min']}-{late['max']} s after the drop (the patch "
+                         f"began under loaded tires, in a corner): no warning that reads the tires can lead by "
+                         f"0.5 s there")
+            lines.append(text + ".")
     return "\n".join(lines) + "\n"
 
 
@@ -235,11 +239,14 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(k, s, str(out / f"timeline_{k}.png") if s == fseed else None)
             for k in kinds for s in range(a.first_seed, a.first_seed + a.seeds)]
     t0 = time.perf_counter()
+    bar = dict(total=len(jobs), desc="rides", unit="ride")
     if a.workers > 1:
         with ProcessPoolExecutor(a.workers) as ex:
-            rides = list(ex.map(_one, jobs))
+            rides = list(tqdm(ex.map(_one, jobs), **bar))
     else:
-        rides = [_one(j) for j in jobs]
+        rides = [_one(j) for j in tqdm(jobs, **bar)]
+    # the rides first: a summary that fails must not lose them
+    (out / "rides.json").write_text(json.dumps(rides, indent=1, allow_nan=False, default=float) + "\n")
     summary = {v: summarise(rides, v) for v in VARIANTS}
     est = estimator_summary(rides)
     res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "variants": VARIANTS, "summary": summary,
