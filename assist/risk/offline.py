@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .monitor import LEVELS, PathAhead, RiskAssessment, RiskMonitor
+from .monitor import LEVELS, PathAhead, RiskAssessment, RiskConfig, RiskMonitor
 from .pipeline import OUTPUTS, MonitorInputs, RiskPipeline, default_estimator
 
 
@@ -189,10 +189,11 @@ def replay(run: RiskRun, monitor: RiskMonitor) -> RiskRun:
 
 def plot_risk(run: RiskRun, path: str | Path | None = None, mu_true: np.ndarray | None = None,
               true_utilisation: np.ndarray | None = None, saturation_t: np.ndarray | None = None,
-              title: str = "risk warning"):
+              title: str = "risk warning", config: RiskConfig | None = None):
     """Timeline: friction (true vs estimated with its 2-sigma band, grey where not informed),
-    utilisation (now per axle, ahead, and the true ``|F_ss|/Fmax`` if given), warning level,
-    and the true saturation instants (red lines) if given."""
+    utilisation (now per axle, ahead, and the true ``|F_ss|/Fmax`` if given) with the caution and
+    danger thresholds of ``config`` (default :class:`RiskConfig`), warning level, and the true
+    saturation instants (red lines) if given."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -217,7 +218,8 @@ def plot_risk(run: RiskRun, path: str | Path | None = None, mu_true: np.ndarray 
     if true_utilisation is not None:
         tu = np.asarray(true_utilisation)
         ax.plot(t, tu.max(axis=1) if tu.ndim == 2 else tu, "k", lw=0.8, alpha=0.7, label="true |F_ss|/Fmax")
-    cfg_lines = ((0.8, "caution"), (1.0, "danger"))
+    cfg = config or RiskConfig()
+    cfg_lines = ((cfg.caution_enter, "caution"), (cfg.danger_enter, "danger"))
     for y, lab in cfg_lines:
         ax.axhline(y, color="0.5", ls=":", lw=0.8)
         ax.text(t[0], y, f" {lab}", fontsize=7, va="bottom", color="0.4")
