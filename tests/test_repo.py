@@ -28,3 +28,22 @@ def test_readme_main_command_is_a_known_subcommand():
     assert main_cmd.startswith("pip install -e . && ptw-assist ")
     argv = main_cmd.split("ptw-assist ", 1)[1].split()
     build_parser().parse_args(argv)  # parses: the subcommand and its options exist
+
+
+def _python_blocks(text: str) -> list[str]:
+    return [b for b in re.findall(r"```python\n(.*?)```", text, flags=re.S)]
+
+
+def test_readme_python_examples_run(tmp_path, monkeypatch):
+    """Every ```python block of the README runs as printed (docs with runnable examples)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    monkeypatch.chdir(tmp_path)
+    blocks = _python_blocks((ROOT / "README.md").read_text())
+    assert len(blocks) >= 4
+    for i, code in enumerate(blocks):
+        try:
+            exec(compile(code, f"README.md python block {i + 1}", "exec"), {"__name__": "__readme__"})
+        except Exception as e:  # pragma: no cover - the message names the block
+            raise AssertionError(f"README python block {i + 1} fails: {e!r}\n{code}") from e
