@@ -485,15 +485,36 @@ def load_policy(path: str | os.PathLike | None = None) -> RLPolicy:
             f"{p}: trained for observations of shape {shape}, not by ptw-assist train-rl (no encoder settings); "
             f"this version's RL encoder gives shape ({expect},): train a policy with 'ptw-assist train-rl'"
         )
-    encoder = ObsEncoder.from_config(meta["encoder"])
+    _check_meta(p, meta)
+    try:
+        encoder = ObsEncoder.from_config(meta["encoder"])
+    except PolicyError as e:
+        raise PolicyError(f"{p}: {e}") from None
+    except (KeyError, TypeError, ValueError) as e:
+        raise PolicyError(f"{p}: unusable encoder settings in the policy file ({type(e).__name__}: {e})") from None
     if shape != (encoder.dim,):
         raise PolicyError(f"{p}: the policy expects observations of shape {shape} but its encoder gives ({encoder.dim},)")
     algo = meta.get("algo")
     if algo not in ALGOS:
         raise PolicyError(f"{p}: unknown algorithm {algo!r} in the policy file; known: {', '.join(ALGOS)}")
     cls = _algo_class(algo)
-    model = cls.load(p, device="cpu")
+    try:
+        model = cls.load(p, device="cpu")
+    except Exception as e:  # a damaged zip, a model of another algorithm than its metadata says
+        raise PolicyError(f"{p}: stable-baselines3 cannot load it as a {algo} model ({type(e).__name__}: {e})") from None
     return RLPolicy(model=model, encoder=encoder, meta=dict(meta), path=p)
+
+
+def _check_meta(p: Path, meta: Any) -> None:
+    """One clear :class:`PolicyError` naming the file and the key for unusable ptw-assist metadata."""
+    if not isinstance(meta, Mapping):
+        raise PolicyError(f"{p}: the policy's ptw-assist settings are a {type(meta).__name__}, not a mapping")
+    if not isinstance(meta.get("encoder"), Mapping):
+        raise PolicyError(f"{p}: no encoder settings ('encoder') in the policy file")
+    for key in ("dt", "tau_max"):
+        v = meta.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            raise PolicyError(f"{p}: '{key}' in the policy file must be a positive number, got {v!r}")
 
 
 class RLAdapter:
@@ -778,7 +799,8 @@ def train(
     if progress:
         callbacks.append(_tqdm_callback(int(steps)))
     meta = {
-        "algo": algo, "encoder": encoder.config(), "tau_max": 60.0, "dt": 0.01, "seed": int(seed),
+        "algo": algo, "encoder": encoder.config(), "tau_max": float(env_kwargs.get("tau_max", 60.0)), "dt": 0.01,
+        "seed": int(seed),
         "steps": int(steps), "n_envs": int(n_envs), "vec": vec, "threads": int(threads),
         "distribution": (env_kwargs.get("distribution") or TrainingDistribution()).describe()
         if not env_kwargs.get("fixed") else {"fixed": dict(env_kwargs["fixed"])},

@@ -7,6 +7,7 @@ works without the ``[rl]`` extra.
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
 from pathlib import Path
@@ -66,6 +67,10 @@ def _build_train_rl(p: argparse.ArgumentParser):
         if a.json is not None and Path(a.json).resolve() == Path(a.sidecar).resolve():
             raise CLIError(f"--json: {a.json} is the policy's provenance file; choose another name")
         _check_outputs(a, "out", "sidecar", "json")
+        for opt, f in (("--out", out), ("--json", None if a.json is None else Path(a.json))):
+            # before training, not after: a run may take an hour
+            if f is not None and not (f.parent.is_dir() and os.access(f.parent, os.W_OK)):
+                raise CLIError(f"{opt}: cannot write into {f.parent} (not a writable folder)")
         ck = out.parent / f"{out.stem}_checkpoints"
         if a.checkpoint_every and ck.exists() and not a.overwrite:
             raise FileExistsError(f"{ck} exists; pass --overwrite to write checkpoints into it")

@@ -167,6 +167,50 @@ def test_policy_file_errors(sb3, tmp_path, capsys):
     assert main(["evaluate", "--controller", "ts", "--policy", str(bad)]) == 2
 
 
+def _edited_policy(tmp_path, name: str, edit, drop: str | None = None):
+    """A copy of the shipped policy with its ptw-assist settings edited (and one zip member dropped)."""
+    import zipfile
+
+    from assist.rl import DEFAULT_POLICY
+
+    out = tmp_path / name
+    with zipfile.ZipFile(DEFAULT_POLICY) as zin, zipfile.ZipFile(out, "w") as zout:
+        for item in zin.namelist():
+            if item == drop:
+                continue
+            raw = zin.read(item)
+            if item == "data":
+                d = json.loads(raw)
+                d["ptw_rl"] = edit(d["ptw_rl"])
+                raw = json.dumps(d).encode()
+            zout.writestr(item, raw)
+    return out
+
+
+@pytest.mark.parametrize("name, edit, drop, match", [
+    ("no_encoder", lambda m: {k: v for k, v in m.items() if k != "encoder"}, None, "no encoder settings"),
+    ("encoder_key", lambda m: {**m, "encoder": {k: v for k, v in m["encoder"].items() if k != "clip"}}, None,
+     "unusable encoder settings"),
+    ("list_meta", lambda m: [1, 2], None, "not a mapping"),
+    ("dt_null", lambda m: {**m, "dt": None}, None, "'dt' in the policy file"),
+    ("tau_text", lambda m: {**m, "tau_max": "x"}, None, "'tau_max' in the policy file"),
+    ("wrong_algo", lambda m: {**m, "algo": "sac"}, None, "cannot load it as a sac model"),
+    ("no_weights", lambda m: m, "policy.pth", "cannot load it as a ppo model"),
+])
+def test_damaged_policy_files_get_one_clear_error(sb3, tmp_path, capsys, name, edit, drop, match):
+    """A policy file with unusable settings or weights: one PolicyError naming the file, exit 2 on the CLI."""
+    from assist.rl import PolicyError, load_policy
+
+    f = _edited_policy(tmp_path, f"{name}.zip", edit, drop)
+    with pytest.raises(PolicyError, match=match) as e:
+        load_policy(f)
+    assert str(f) in str(e.value)
+    capsys.readouterr()
+    assert main(["evaluate", "--controller", "rl", "--policy", str(f)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(f) in err[0], err
+
+
 def test_train_rl_cli(sb3, tmp_path, capsys):
     out, js = tmp_path / "p.zip", tmp_path / "t.json"
     args = ["train-rl", "--algo", "ppo", "--steps", "1024", "--seed", "3", "--n-envs", "2", "--no-progress",
