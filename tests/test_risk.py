@@ -199,6 +199,21 @@ def test_levels_and_reasons_follow_the_risk_index():
     assert a.safe_speed_next_curve == pytest.approx(safe_curve_speed(0.45, 1 / 40, RiskConfig().margin), rel=1e-3)
 
 
+def test_a_warning_held_down_one_level_says_why_in_its_own_words():
+    """danger -> caution because the grip was low a moment ago: the level and its reason agree."""
+    mon = RiskMonitor()
+    kappa = 1.1 * 0.45 * G / 20.0**2  # the curve now needs 110 % of a 0.45 grip at 20 m/s
+    path = PathAhead(np.array([0.0, 40.0]), np.array([kappa, kappa]))
+    levels = []
+    for k in range(25):  # grip estimate 0.45, then 0.6, then 0.9; light tire forces, no style caution
+        s = 0.5 if k == 0 else (2 / 3 if k <= 6 else 1.0)
+        a = mon.update(0.1 * k, s * C0, 0.02 * C0, vx=20.0, ay=0.5, forces=(50.0, 50.0), path=path)
+        levels.append(a.level)
+        assert a.reason.startswith(a.level + ":"), (0.1 * k, a.level, a.reason)
+    assert levels[0] == "danger" and "caution" in levels and levels[-1] == "safe"
+    assert levels.index("caution") > levels.index("danger")
+
+
 def test_monitor_refuses_bad_input_with_a_clear_message():
     mon = RiskMonitor()
     with pytest.raises(ValueError, match="vx"):

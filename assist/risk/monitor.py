@@ -447,12 +447,18 @@ class RiskMonitor:
         while self._mu_hist and self._mu_hist[0][0] < t - c.min_dwell_s:
             self._mu_hist.popleft()
         if target < cur:
-            f = mu / min(m_ for _, m_ in self._mu_hist)
+            mu_min = min(m_ for _, m_ in self._mu_hist)
+            f = mu / mu_min
             lo_c = c.caution_exit if cur >= CAUTION else c.caution_enter
             held = (DANGER if rho * f >= d_th else
                     CAUTION if (rho * f >= lo_c or pace * f >= p_th) else SAFE)
             if held > target:
-                target, reason = min(held, cur), self._reason.split(" [held")[0]
+                target = min(held, cur)
+                if target == cur:  # the warning stays as it is, and so does its reason
+                    reason = self._reason.split(" [held")[0]
+                else:  # down one level only (danger -> caution): say why caution stays
+                    reason = (f"{LEVELS[target]}: {what}; the estimated grip was as low as {mu_min:.2f} in the "
+                              f"last {c.min_dwell_s:g} s ({grip}): {advice}")
         if target > cur or (target < cur and t - self._t_enter >= c.min_dwell_s):
             self._level, self._t_enter = target, t
             self._reason = reason
