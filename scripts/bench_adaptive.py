@@ -33,6 +33,7 @@ from assist.adaptive_observer import AdaptiveObserver  # noqa: E402
 from assist.identification import JointEKF  # noqa: E402
 from ptw_env.env import PTWRollEnv  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
+from _outputs import add_overwrite, output_file  # noqa: E402  (scripts/_outputs.py)
 
 
 def _median(f, repeat: int) -> float:
@@ -46,7 +47,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--json", default=None)
+    add_overwrite(ap)
     a = ap.parse_args(argv)
+    output_file(ap, "--json", a.json, a.overwrite)
     res: dict[str, float] = {}
 
     def design_s() -> float:

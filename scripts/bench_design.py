@@ -33,6 +33,7 @@ import numpy as np
 
 from assist import ts_design
 from assist.ts_controller import TSObserverController
+from _outputs import add_overwrite, output_file  # noqa: E402  (scripts/_outputs.py)
 
 
 def time_design(solver: str, repeat: int, vmin: float, vmax: float) -> dict:
@@ -103,7 +104,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--no-scs", action="store_true", help="skip SCS (it takes minutes)")
     ap.add_argument("--calls", type=int, default=20000, help="calls per timing block of update/step")
     ap.add_argument("--json", metavar="FILE", help="write the numbers to FILE")
+    add_overwrite(ap)
     args = ap.parse_args(argv)
+    output_file(ap, "--json", args.json, args.overwrite)
 
     out: dict = {"clarabel": time_design("CLARABEL", args.repeat, args.vmin, args.vmax)}
     c = out["clarabel"]

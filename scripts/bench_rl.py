@@ -21,6 +21,7 @@ import statistics
 import time
 
 from assist.rl import build_model
+from _outputs import add_overwrite, output_file  # noqa: E402  (scripts/_outputs.py)
 
 
 def _run(threads: int, vec: str, n_envs: int, steps: int, seed: int = 0) -> dict[str, float]:
@@ -50,7 +51,9 @@ def main() -> None:
     ap.add_argument("--n-envs", type=int, default=4)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", default=None)
+    add_overwrite(ap)
     a = ap.parse_args()
+    output_file(ap, "--json", a.json, a.overwrite)
     configs = [(1, "dummy"), (2, "dummy"), (1, "subproc"), (2, "subproc")]
     runs: dict[tuple[int, str], list[dict[str, float]]] = {c: [] for c in configs}
     _run(1, "dummy", a.n_envs, 2048)  # warm-up: numba caches, imports

@@ -43,6 +43,7 @@ from ptw_env.logs import read_log  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
 from ptw_env.sensors import SensorConfig  # noqa: E402
 from ptw_env.vehicle import REFERENCE_SCOOTER  # noqa: E402
+from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
 
 C0 = build_lpv_model().theta0
 #: The adaptive observer in three configurations (design, parametrisation): the paper's (Theorem-2 gains,
@@ -228,9 +229,9 @@ def main(argv=None) -> int:
     ap.add_argument("out", nargs="?", default="out/adaptive", help="output directory (default out/adaptive/)")
     ap.add_argument("--quick", action="store_true", help="handling only, noise 5 %%, three variations")
     ap.add_argument("--seeds", type=int, default=1, help="seeds per case (default 1)")
+    add_overwrite(ap)
     a = ap.parse_args(argv)
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(ap, a.out, a.overwrite)
     t_start = time.perf_counter()
     design = default_design()
     kdesign = kalman_design()

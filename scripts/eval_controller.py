@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 import matplotlib
 
@@ -38,6 +37,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
 from assist.evaluate import aggregate, metrics_table, plot_episode, run_episode  # noqa: E402
+from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
 
 SCENARIOS = [
     ("double_lane_change", 50.0),
@@ -61,9 +61,9 @@ def main() -> None:
     ap.add_argument("--noise", default="0,5,10", help="noise levels in percent, comma-separated")
     ap.add_argument("--quick", action="store_true", help="one seed, 5 %% noise only")
     ap.add_argument("--rl", action="store_true", help="include the shipped RL policy")
+    add_overwrite(ap)
     args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(ap, args.out, args.overwrite)
     noises = [5.0] if args.quick else [float(s) for s in args.noise.split(",")]
     seeds = range(1 if args.quick else args.seeds)
     ctrls = CONTROLLERS + ([("rl", {}, "rl")] if args.rl else [])

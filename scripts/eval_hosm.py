@@ -56,7 +56,6 @@ import dataclasses
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -74,6 +73,7 @@ from assist.observability import format_report, observability_report, plot_repor
 from ptw_env.ride import ride_scenario
 from ptw_env.sensors import SensorConfig
 from ptw_env.vehicle import REFERENCE_SCOOTER, STATE_NAMES, STATE_UNITS
+from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
 
 WARMUP_S = 2.0
 PAPER_X0 = np.array([0.0, 0.0873, 0.1745, 0.1745, -0.3491, -0.0873, 50.0, 50.0])  # [1] sec. IV-C, in our order
@@ -256,9 +256,9 @@ def main(argv=None) -> int:
     ap.add_argument("--no-tune", action="store_true", help="skip the Lipschitz tuning run")
     ap.add_argument("--no-ts", action="store_true", help="skip the TS observer comparison")
     ap.add_argument("--quick", action="store_true", help="fewer speeds and scenarios (a smoke run)")
+    add_overwrite(ap)
     args = ap.parse_args(argv)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(ap, args.out, args.overwrite)
     t_start = time.time()
     M: dict = {"seed": args.seed, "warmup_s": WARMUP_S}
     lines: list[str] = []

@@ -29,13 +29,13 @@ import json
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from assist.risk.evaluation import KINDS, WARNABLE_S, estimator_figures, make_case, run_case
 from assist.risk.offline import plot_risk, replay
+from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
 
 #: Monitor variants compared on the same estimator outputs: the default (caution also when the grip is
 #: not confirmed at 2 sigma) and one that acts on the estimate alone.
@@ -112,10 +112,19 @@ def summarise(rides: list[dict], variant: str = "default") -> dict:
         if kind.startswith("wet"):  # split by whether the patch began early enough to be seen (WARNABLE_S)
             on = [(r["estimator"].get("onset_to_saturation_s"), r["events"][0]) for r in rs if r["events"]]
             ok = [e for o, e in on if o is not None and o >= WARNABLE_S]
+            # the others: grip lost within WARNABLE_S of the drop; each with the true |F|/Fz of the more
+            # loaded axle at the drop (in a corner: a large share) and its caution lead
+            late = [(r["estimator"]["onset_to_saturation_s"], r["estimator"].get("load_at_drop"),
+                     r["events"][0]["caution"]["lead_s"]) for r in rs if r["events"]
+                    and r["estimator"].get("onset_to_saturation_s") is not None
+                    and r["estimator"]["onset_to_saturation_s"] < WARNABLE_S]
             d["warnable"] = {"events": len(ok),
                              "caution_0p5s": sum(1 for e in ok if (e["caution"]["lead_s"] or 0.0) >= 0.5),
                              "lead_s": _stats([e["caution"]["lead_s"] for e in ok if e["caution"]["lead_s"] is not None]),
-                             "too_late_onset_to_saturation_s": _stats([o for o, _ in on if o is not None and o < WARNABLE_S])}
+                             "too_late_onset_to_saturation_s": _stats([o for o, _ in on if o is not None and o < WARNABLE_S]),
+                             "too_late": [{"onset_to_saturation_s": round(o, 2),
+                                           "load_at_drop": None if ld is None else round(ld, 3),
+                                           "caution_lead_s": None if c is None else round(c, 2)} for o, ld, c in late]}
         minutes = sum(r["duration_s"] for r in rs) / 60.0
         d["false_alarms"] = None
         if kind.startswith("dry"):
@@ -211,9 +220,14 @@ def markdown(summary: dict, n: int) -> str:
                     f"friction dropped, {w['caution_0p5s']} had a caution at least 0.5 s ahead (lead min / median "
                     f"{w['lead_s']['min']} / {w['lead_s']['median']} s)")
             if late["n"]:
-                text += (f"; the other {late['n']} came {late['min']}-{late['max']} s after the drop (the patch "
-                         f"began under loaded tires, in a corner): no warning that reads the tires can lead by "
-                         f"0.5 s there")
+                cases = "; ".join(
+                    f"{c['onset_to_saturation_s']:.2f} s, |F|/Fz {c['load_at_drop']}, caution "
+                    + ("none" if c["caution_lead_s"] is None else f"{c['caution_lead_s']:.2f} s ahead")
+                    for c in w["too_late"])
+                text += (f"; the other {late['n']} came within {WARNABLE_S:g} s of the drop (time from the drop, "
+                         f"true |F|/Fz of the more loaded axle at the drop, caution lead: {cases}). A patch that "
+                         f"begins under tires already loaded in a corner (|F|/Fz ~0.3 and more) takes the grip "
+                         f"before the tires have told anything: no warning that reads them can lead by 0.5 s there")
             lines.append(text + ".")
     return "\n".join(lines) + "\n"
 
@@ -227,14 +241,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--out", default="out/risk", help="output directory (default out/risk/)")
     p.add_argument("--figure-seed", type=int, default=None, help="seed of the timeline figures (default: the first)")
+    add_overwrite(p)
     a = p.parse_args(argv)
     kinds = [k for k in a.kinds.split(",") if k]
     bad = [k for k in kinds if k not in KINDS]
     if bad or a.seeds < 1:
         print(f"eval_risk: error: unknown ride type(s) {bad} (known: {', '.join(KINDS)}) or --seeds < 1", file=sys.stderr)
         return 2
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(p, a.out, a.overwrite)
     fseed = a.first_seed if a.figure_seed is None else a.figure_seed
     jobs = [(k, s, str(out / f"timeline_{k}.png") if s == fseed else None)
             for k in kinds for s in range(a.first_seed, a.first_seed + a.seeds)]

@@ -29,12 +29,12 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
 from tqdm import tqdm
 
 from assist.evaluate import aggregate, plot_episode, run_episode
 from assist.rl import DEFAULT_POLICY, load_policy
+from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
 
 #: (scenario, speed km/h or None, inside the RL training distribution?)
 CONDITIONS = [
@@ -135,9 +135,9 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--policy", default=None, help=f"policy file (default: {DEFAULT_POLICY.name}, shipped)")
     ap.add_argument("--quick", action="store_true", help="one seed, 5 %% noise, no speed sweep")
+    add_overwrite(ap)
     a = ap.parse_args()
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_dir(ap, a.out, a.overwrite)
     policy = load_policy(a.policy)  # once: every RL episode uses this object
     seeds = range(1 if a.quick else a.seeds)
     noises = [(5.0, True)] if a.quick else NOISES

@@ -323,8 +323,10 @@ def estimator_figures(res: CaseResult, rel_tol: float = 0.2, excitation_g: float
       axle force ``|F_k| >= excitation_g Fz_k`` on the new surface; ``detect_s``, from that instant
       to ``mu_hat`` within ``rel_tol`` of the new friction; ``before_saturation_s``, from detection
       to the next saturation event (NaN if none); ``onset_to_saturation_s``, from the drop to the first
-      saturation after it (under :data:`WARNABLE_S` the patch began under loaded tires: no warning
-      that reads the tires' response can lead by 0.5 s).
+      saturation after it (under :data:`WARNABLE_S` little time is left for any warning: when the
+      patch begins under tires loaded in a corner, none that reads the tires' response can lead by
+      0.5 s); ``load_at_drop``, the true ``|F_k| / Fz_k`` of the more loaded axle at the drop (near 0
+      on a straight, ~0.3 and more in a corner).
     """
     t = res.run.t
     mu_hat = res.run.series("mu_hat")
@@ -348,6 +350,7 @@ def estimator_figures(res: CaseResult, rel_tol: float = 0.2, excitation_g: float
         out["onset_to_saturation_s"] = float(after[0] - t[k0]) if after.size else None
         fz = np.array([REFERENCE_SCOOTER.tires.Fzf, REFERENCE_SCOOTER.tires.Fzr])
         load = np.max(np.abs(res.ride.states[:, 6:8]) / fz, axis=1)
+        out["load_at_drop"] = float(load[k0])  # |F|/Fz of the more loaded axle as the friction drops
         exc = np.flatnonzero((np.arange(len(t)) >= k0) & (load >= excitation_g))
         out["excitation_s"] = float(t[exc[0]] - t[k0]) if exc.size else None
         if exc.size:

@@ -1,0 +1,44 @@
+"""Outputs of the evaluation and benchmark scripts: nothing is overwritten without ``--overwrite``.
+
+The scripts run as ``python scripts/NAME.py``, which puts this folder on ``sys.path``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+
+def add_overwrite(parser: argparse.ArgumentParser) -> None:
+    """The ``--overwrite`` option."""
+    parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
+
+
+def output_dir(parser: argparse.ArgumentParser, path: str | os.PathLike, overwrite: bool) -> Path:
+    """The output folder ``path``, created; one clear error (exit 2) if it is a file, or holds files
+    and ``overwrite`` is false (the script would replace some of them)."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        parser.error(f"output folder {out} is a file")
+    if out.is_dir() and any(out.iterdir()) and not overwrite:
+        parser.error(f"output folder {out} is not empty; pass --overwrite to replace its files")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        parser.error(f"cannot create the output folder {out}: {e.strerror}")
+    return out
+
+
+def output_file(parser: argparse.ArgumentParser, option: str, path: str | os.PathLike | None,
+                overwrite: bool) -> Path | None:
+    """``path`` (the value of ``option``) checked before any work: its folder exists and it does not,
+    unless ``overwrite``."""
+    if path is None:
+        return None
+    f = Path(path)
+    if not f.parent.is_dir():
+        parser.error(f"{option}: folder {f.parent} does not exist")
+    if f.exists() and not overwrite:
+        parser.error(f"{option}: {f} exists; pass --overwrite to replace it")
+    return f
