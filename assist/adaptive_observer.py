@@ -567,6 +567,11 @@ class AdaptiveObserver:
         the range of ``G``. The coarser ones are far better determined from short rides
         (:mod:`assist.identifiability`: on 15 s of the handling track at 5 % noise the
         Cramér-Rao 1-sigma of ``C_gamma_r`` is 4-8 %, of the rear axle scale 0.2-0.7 %).
+    road_bank : float
+        Known bank (cross-fall) of the road [rad], effects.md ``road_bank`` in the observer's plant
+        (default 0: level). The model has no other place for a bank: an unknown one's steady side
+        force is read as a stiffness change (a 0.02 rad bank, a road's usual cross-fall, puts the
+        axle scales 3 % and 13 % off on a simulated urban ride; given, 0.1 %).
 
     Examples
     --------
@@ -582,7 +587,7 @@ class AdaptiveObserver:
     def __init__(self, design: AdaptiveObserverDesign | None = None, law: str = "sensitivity",
                  band: tuple[float, float] = DEFAULT_BAND, tau_a: float = 10.0, gamma=None, filter_hz: float = 4.0,
                  stiffness_std0: float = 0.5, stiffness_walk: float = 0.02,
-                 parametrisation: str = "stiffness") -> None:
+                 parametrisation: str = "stiffness", road_bank: float = 0.0) -> None:
         self.design = default_design() if design is None else design
         if not isinstance(self.design, AdaptiveObserverDesign):
             raise ObserverInputError(f"design must be an AdaptiveObserverDesign, got {type(design).__name__}")
@@ -628,7 +633,11 @@ class AdaptiveObserver:
             g = self.gain.gamma
         else:
             g = np.zeros(4)
-        plant = compile_plant(m.vehicle)
+        if not (isinstance(road_bank, (int, float)) and math.isfinite(road_bank) and abs(road_bank) < 0.5):
+            raise ObserverInputError(f"road_bank must be a bank angle in rad, |road_bank| < 0.5, got {road_bank!r}")
+        self.road_bank = float(road_bank)
+        # a known road bank (effects.md road_bank, e.g. named by ptw-assist diagnose) in the observer's plant
+        plant = compile_plant(m.vehicle, {"road_bank": {"bank_rad": self.road_bank}} if self.road_bank else None)
         W, s, f, b = plant.flat()
         w = m._w()
         v = m.vehicle

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ptw_env.cli import CLIError, _check_outputs, _nonneg, _write_json, command
+from ptw_env.cli import CLIError, _bank, _check_outputs, _nonneg, _write_json, command
 
 METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
 
@@ -101,6 +101,9 @@ def _build(p: argparse.ArgumentParser):
     p.add_argument("--parametrisation", choices=("stiffness", "axle", "friction"), default="stiffness",
                    help="what the adaptive observer adapts: the four stiffnesses (default, the paper's), one scale "
                         "per axle, or one friction scale for all four")
+    p.add_argument("--road-bank", type=_bank, default=0.0, metavar="RAD",
+                   help="adaptive: bank (cross-fall) of the road in rad, e.g. from 'ptw-assist diagnose' "
+                        "(default 0: level); an unknown bank biases the stiffness estimate")
     p.add_argument("--tau-a", type=float, default=None, metavar="S",
                    help="paper's law: adaptation time constant [s] (default 10)")
     p.add_argument("--plot", default=None, metavar="OUT.png")
@@ -135,15 +138,17 @@ def _build(p: argparse.ArgumentParser):
         if a.law == "paper" and (a.gains, a.parametrisation) != ("theorem2", "stiffness"):
             raise CLIError("--law paper adapts the four stiffnesses with Theorem-2 gains: "
                            "use --gains theorem2 --parametrisation stiffness")
+        if a.road_bank and a.method != "adaptive":
+            raise CLIError("--road-bank applies to --method adaptive only")
         obs = AdaptiveObserver(design, law=a.law, tau_a=10.0 if a.tau_a is None else a.tau_a,
-                               parametrisation=a.parametrisation)
+                               parametrisation=a.parametrisation, road_bank=a.road_bank)
         sensors = SensorConfig.from_percent(pct) if pct is not None else SensorConfig()
         method = "ukf" if a.method == "ekf" else a.method
         res = estimate(log, method, sensors=sensors, observer=obs)
         out = res.to_json()
         out["log"] = str(a.log)
         if method == "adaptive":
-            out.update(law=a.law, gains=a.gains, parametrisation=a.parametrisation)
+            out.update(law=a.law, gains=a.gains, parametrisation=a.parametrisation, road_bank_rad=a.road_bank)
         nominal = build_lpv_model().theta0
         scales = _truth_scales(log.meta)
         truth = None

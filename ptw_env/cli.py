@@ -86,6 +86,17 @@ def _nonneg(text: str) -> float:
     return v
 
 
+def _bank(text: str) -> float:
+    """``--road-bank``: an angle in rad, |bank| < 0.5 (a value in degrees is refused)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v) or abs(v) >= 0.5:
+        raise argparse.ArgumentTypeError(f"{text} is not a road bank in rad (|bank| < 0.5; degrees? 3 deg = 0.052 rad)")
+    return v
+
+
 # ---------------------------------------------------------------------------- simulate
 @command(
     "simulate",

@@ -292,3 +292,30 @@ def test_kalman_gains_with_axle_scales_follow_a_friction_drop(kdesign, drop_log,
     s = run.stiffness / kdesign.model.theta0
     np.testing.assert_allclose(s[:, 0], s[:, 1], rtol=1e-9)
     np.testing.assert_allclose(s[:, 2], s[:, 3], rtol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def bank_log():
+    """A 90 s urban ride at 5 % noise on a road with the usual 0.02 rad cross-fall (effects.md road_bank)."""
+    from ptw_env.ride import ride_scenario
+
+    return ride_scenario("urban", effects={"road_bank": {"bank_rad": 0.02}}, noise_pct=5.0, seed=1).log
+
+
+def test_a_known_road_bank_removes_the_stiffness_bias(kdesign, bank_log):
+    """The observer's model has no bank: an unknown one's steady side force is read as a stiffness
+    change (here the rear axle scale ends > 5 % off); given the bank (``road_bank``, e.g. from the
+    diagnosis) the axle scales end within 2 % of the truth (1, nominal tires)."""
+    def scales(bank):
+        run = AdaptiveObserver(kdesign, parametrisation="axle", road_bank=bank).run_log(bank_log)
+        return run.final_third_mean() / kdesign.model.theta0
+
+    unknown, known = scales(0.0), scales(0.02)
+    assert np.max(np.abs(unknown - 1.0)) > 0.05, unknown
+    assert np.all(np.abs(known - 1.0) < 0.02), known
+
+
+@pytest.mark.parametrize("bank", [0.6, float("nan"), "0.02"])
+def test_bad_road_bank(kdesign, bank):
+    with pytest.raises(ObserverInputError, match="road_bank"):
+        AdaptiveObserver(kdesign, road_bank=bank)

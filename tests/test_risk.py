@@ -339,3 +339,14 @@ def test_offline_replay_gives_the_same_assessments(wet_log, estimator):
     deaf = replay(run, RiskMonitor(RiskConfig(caution_enter=1e3, caution_exit=1e3, danger_enter=1e3,
                                               danger_exit=1e3, style_enter=1e3, style_exit=1e3, confirm_sigmas=0.0)))
     assert deaf.level_code.max() == 0  # the replay really uses the other monitor
+
+
+@pytest.mark.parametrize("value, words", [("3", "degrees?"), ("nan", "not a road bank"), ("x", "not a number")])
+def test_cli_road_bank_must_be_an_angle_in_rad(tmp_path, capsys, value, words):
+    from ptw_env.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["risk", str(tmp_path / "any.csv"), "--road-bank", value])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "--road-bank" in err[-1] and words in err[-1], err

@@ -59,12 +59,18 @@ class StiffnessEstimator(Protocol):
 FRICTION_WALK = 0.05
 
 
-def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01):
+def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, road_bank: float = 0.0):
     """The LPV adaptive observer for the risk warning: Kalman vertex gains
     (:func:`assist.adaptive_design.kalman_design`) and one friction scale for all four stiffnesses
     (``parametrisation="friction"``, [1]_ sec. II-C ``Theta = mu Theta_0``), sensitivity law with the
     random walk :data:`FRICTION_WALK`; designed for ``noise_pct`` % sensor noise (``None``: the
-    reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s].
+    reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s], on a road of known bank
+    ``road_bank`` [rad] (effects.md ``road_bank``; default level).
+
+    The road must be known: the model has no bank, so a bank's steady side force is read as a
+    stiffness change (measured on a simulated urban ride at friction 0.9: ``mu_hat`` ends at 1.07 on a
+    0.02 rad bank, the usual cross-fall of a road, and swings between 0.4 and 1.4 on 0.04 rad; with
+    the bank given, 0.92 and 0.94). ``ptw-assist diagnose`` names and sizes a bank on a log.
 
     Why this one: it sees a friction drop from the steering response to the rider's torque even on a
     straight (on the wet-patch rides of :mod:`assist.risk.evaluation` it reads 0.9 -> ~0.5 within a
@@ -79,7 +85,7 @@ def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01):
 
     pct = 0.5 if noise_pct is None else max(float(noise_pct), 0.5)
     design = default_kalman_design(AdaptiveDesignOptions(noise_pct=pct, dt=round(float(dt), 9)))
-    return AdaptiveObserver(design, parametrisation="friction", stiffness_walk=FRICTION_WALK)
+    return AdaptiveObserver(design, parametrisation="friction", stiffness_walk=FRICTION_WALK, road_bank=road_bank)
 
 
 class RiskPipeline:
