@@ -633,12 +633,13 @@ class AdaptiveObserver:
             g = self.gain.gamma
         else:
             g = np.zeros(4)
-        if not (isinstance(road_bank, (int, float)) and math.isfinite(road_bank) and abs(road_bank) < 0.5):
-            raise ObserverInputError(f"road_bank must be a bank angle in rad, |road_bank| < 0.5, got {road_bank!r}")
-        self.road_bank = float(road_bank)
-        # a known road bank (effects.md road_bank, e.g. named by ptw-assist diagnose) in the observer's plant
-        plant = compile_plant(m.vehicle, {"road_bank": {"bank_rad": self.road_bank}} if self.road_bank else None)
+        _check_bank(road_bank)
+        # a known road bank (effects.md road_bank) enters the plant's constant column (row 3's
+        # -M g sin(beta), through E^-1) linearly in sin(beta), and the sine terms as the angle
+        plant = compile_plant(m.vehicle)
         W, s, f, b = plant.flat()
+        W1 = compile_plant(m.vehicle, {"road_bank": {"bank_rad": _BANK_REF}}).flat()[0]
+        self._W0, self._dW = W[0].copy(), (W1[0] - W[0]) / math.sin(_BANK_REF)
         w = m._w()
         v = m.vehicle
         idx = list((R, PHI_DOT, DELTA_DOT))
@@ -657,7 +658,20 @@ class AdaptiveObserver:
             law=self.LAWS[law],
         )
         self._args = tuple(self._p.values())
+        self.road_bank = road_bank
         self.reset()
+
+    @property
+    def road_bank(self) -> float:
+        """The road bank [rad] the observer's plant assumes (settable between samples)."""
+        return self._p["bank"]
+
+    @road_bank.setter
+    def road_bank(self, value: float) -> None:
+        _check_bank(value)
+        self._p["W"] = self._W0 + math.sin(value) * self._dW
+        self._p["bank"] = float(value)
+        self._args = tuple(self._p.values())
 
     # ------------------------------------------------------------------
     def reset(self, x0=None, theta0=None) -> None:
@@ -761,6 +775,16 @@ class AdaptiveObserver:
         c = log.columns
         Y = np.column_stack([c[name] for name in OUTPUT_NAMES])
         return self.run(log.t, Y, c["tau"], c["vx"], interpolate_speed=interpolate_speed)
+
+
+#: Bank at which the plant's bank column is sampled (it is linear in sin(bank)).
+_BANK_REF = 0.1
+
+
+def _check_bank(value) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or abs(value) >= 0.5:
+        raise ObserverInputError(f"road_bank must be a bank angle in rad, |road_bank| < 0.5, got {value!r}")
 
 
 def effective_noise(design: AdaptiveObserverDesign, vx: float | None = None) -> np.ndarray:

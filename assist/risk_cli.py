@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ptw_env.cli import CLIError, _bank, _check_outputs, _nonneg, _write_json, command
+from ptw_env.cli import CLIError, _bank_or_auto, _check_outputs, _nonneg, _write_json, command
 
 
 @command(
@@ -31,15 +31,18 @@ def _build(p: argparse.ArgumentParser):
     p.add_argument("--no-map", action="store_true", help="ignore a kappa column (no preview of the road ahead)")
     p.add_argument("--confirm-sigmas", type=_nonneg, default=None, metavar="K",
                    help="caution also when the grip is not confirmed at K sigma (default 2; 0: the estimate alone)")
-    p.add_argument("--road-bank", type=_bank, default=0.0, metavar="RAD",
-                   help="bank (cross-fall) of the road in rad, e.g. from 'ptw-assist diagnose' (default 0: level); "
-                        "an unknown bank biases the friction estimate")
+    p.add_argument("--road-bank", type=_bank_or_auto, default="auto", metavar="RAD|auto",
+                   help="bank (cross-fall) of the road: 'auto' (default) estimates it on line from the lateral "
+                        "acceleration and the yaw rate on straights; a number in rad fixes it (e.g. from "
+                        "'ptw-assist diagnose'; 0: level)")
     p.add_argument("--plot", default=None, metavar="OUT.png", help="timeline figure")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
 
     def run(a: argparse.Namespace) -> int:
         import math
+
+        import numpy as np
 
         from ptw_env.logs import read_log
 
@@ -57,17 +60,29 @@ def _build(p: argparse.ArgumentParser):
             pct = float(v) if isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 else 5.0
         cfg = RiskConfig() if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)
         try:
-            est = default_estimator(pct, dt, road_bank=a.road_bank)
+            est = default_estimator(pct, dt)
         except ValueError as exc:
             raise CLIError(f"{a.log}: the adaptive observer cannot be designed for this log ({exc})") from None
-        res = assess_log(log, RiskPipeline(est, RiskMonitor(cfg)), use_kappa=not a.no_map)
+        pipe = RiskPipeline(est, RiskMonitor(cfg), road_bank=a.road_bank)
+        if pipe.bank_estimate is not None:
+            pipe.bank_estimate.record = True  # the estimates, for the report
+        res = assess_log(log, pipe, use_kappa=not a.no_map)
+        banks = [] if pipe.bank_estimate is None else pipe.bank_estimate.history
         js = res.to_json()
         js["log"] = str(a.log)
         js["noise_pct_assumed"] = pct
         js["road_bank_rad"] = a.road_bank
+        if banks:
+            b = np.asarray(banks)
+            js["road_bank_estimate_rad"] = {"median": float(np.median(b)), "p5": float(np.percentile(b, 5)),
+                                            "p95": float(np.percentile(b, 95)), "final": float(b[-1])}
         last = res.assessments[-1]
         truth = truth_from_log(log)
         print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; road ahead: {res.path_source}")
+        if banks:
+            e = js["road_bank_estimate_rad"]
+            print(f"road bank estimated on line: median {e['median']:.4f} rad (5-95 %: {e['p5']:.4f} to "
+                  f"{e['p95']:.4f}), final {e['final']:.4f}")
         print(f"friction at the end: mu_hat = {last.mu_hat:.2f} +- {last.mu_std:.2f} ({last.friction_status}); "
               f"max safe lean {math.degrees(last.max_safe_lean):.0f} deg; "
               f"time in caution {js['time_in_level_s']['caution']:.1f} s, danger {js['time_in_level_s']['danger']:.1f} s")

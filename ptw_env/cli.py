@@ -86,6 +86,11 @@ def _nonneg(text: str) -> float:
     return v
 
 
+def _bank_or_auto(text: str) -> float | str:
+    """``--road-bank`` of the risk warning: an angle in rad, or ``auto`` (estimated on line)."""
+    return "auto" if text.strip().lower() == "auto" else _bank(text)
+
+
 def _bank(text: str) -> float:
     """``--road-bank``: an angle in rad, |bank| < 0.5 (a value in degrees is refused)."""
     try:

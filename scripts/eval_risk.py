@@ -42,6 +42,8 @@ from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.
 VARIANTS = {"default": {}, "estimate_only": {"confirm_sigmas": 0.0}}
 
 _PIPE = None
+#: --road-bank ("auto", the default; a number [rad]; None: the estimator's level road), set by main()
+_ROAD_BANK: float | str | None = "auto"
 
 
 def _one(args: tuple[str, int, str | None]) -> dict:
@@ -50,7 +52,7 @@ def _one(args: tuple[str, int, str | None]) -> dict:
     from assist.risk.pipeline import RiskPipeline, default_estimator
 
     if _PIPE is None:
-        _PIPE = RiskPipeline(default_estimator(5.0))
+        _PIPE = RiskPipeline(default_estimator(5.0), road_bank=_ROAD_BANK)
     from assist.risk.monitor import RiskConfig, RiskMonitor
 
     t0 = time.perf_counter()
@@ -188,7 +190,8 @@ def markdown(summary: dict, n: int) -> str:
     lines = [
         f"Risk warning, {n} seeded rides per type, 5 % sensor noise, tire_saturation on "
         "(saturation: |F_ss| >= 0.95 Fmax on either axle, from the simulator's true state). "
-        "Lead = saturation instant - onset of the warning active then; target >= 0.5 s.",
+        "Lead = saturation instant - onset of the warning active then; target >= 0.5 s. Road bank given to "
+        f"the estimator: {'none (level road)' if _ROAD_BANK is None else _ROAD_BANK}.",
         "",
         "| ride | rides / saturating | events | caution: warned (>= 0.5 s) | caution lead min / median [s] "
         "| danger: warned (>= 0.5 s) | danger lead min / median [s] | false alarms (rides with caution / danger) "
@@ -241,8 +244,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--out", default="out/risk", help="output directory (default out/risk/)")
     p.add_argument("--figure-seed", type=int, default=None, help="seed of the timeline figures (default: the first)")
+    p.add_argument("--road-bank", default="auto", metavar="RAD|auto|none",
+                   help="road bank given to the estimator (RiskPipeline road_bank): 'auto' (default, estimated on "
+                        "line), a number in rad, or 'none' (the estimator's level road)")
     add_overwrite(p)
     a = p.parse_args(argv)
+    global _ROAD_BANK
+    try:
+        _ROAD_BANK = {"auto": "auto", "none": None}.get(a.road_bank.lower()) if a.road_bank.lower() in (
+            "auto", "none") else float(a.road_bank)
+    except ValueError:
+        p.error(f"--road-bank: 'auto', 'none' or a number in rad, got {a.road_bank!r}")
     kinds = [k for k in a.kinds.split(",") if k]
     bad = [k for k in kinds if k not in KINDS]
     if bad or a.seeds < 1:
@@ -263,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
     (out / "rides.json").write_text(json.dumps(rides, indent=1, allow_nan=False, default=float) + "\n")
     summary = {v: summarise(rides, v) for v in VARIANTS}
     est = estimator_summary(rides)
-    res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "variants": VARIANTS, "summary": summary,
+    res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "road_bank": _ROAD_BANK, "variants": VARIANTS, "summary": summary,
            "estimator": est, "rides": rides, "seconds": round(time.perf_counter() - t0, 1)}
     (out / "results.json").write_text(json.dumps(res, indent=1, allow_nan=False, default=float) + "\n")
     md = "\n".join(f"### monitor: {v} {VARIANTS[v] or '(defaults)'}\n\n" + markdown(summary[v], a.seeds)

@@ -350,3 +350,44 @@ def test_cli_road_bank_must_be_an_angle_in_rad(tmp_path, capsys, value, words):
     assert e.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert "--road-bank" in err[-1] and words in err[-1], err
+
+
+@pytest.fixture(scope="module")
+def banked_log():
+    """A 90 s urban ride, dry (friction 0.9), 5 % noise, on a 0.03 rad road bank."""
+    return ride_scenario("urban", effects={"road_bank": {"bank_rad": 0.03}}, noise_pct=5.0, seed=2).log
+
+
+def test_road_bank_estimated_on_line_keeps_the_friction_estimate(banked_log):
+    """``road_bank="auto"`` (default): the IMU's bank estimate (:class:`BankEstimate`) settles at the true bank,
+    and the friction estimate stays near 0.9, where the level-road model is biased by the bank."""
+    from assist.risk.pipeline import default_estimator
+
+    level = assess_log(banked_log, RiskPipeline(default_estimator(5.0), road_bank=None))
+    pipe = RiskPipeline(default_estimator(5.0))  # road_bank="auto", the default
+    pipe.bank_estimate.record = True
+    auto = assess_log(banked_log, pipe)
+    b = np.asarray(pipe.bank_estimate.history)
+    assert np.median(b[3000:]) == pytest.approx(0.03, abs=0.004)
+    half = len(banked_log.t) // 2
+    mu_level, mu_auto = (np.median(r.series("mu_hat")[half:]) for r in (level, auto))
+    assert abs(mu_auto - 0.9) < 0.05, mu_auto
+    assert abs(mu_level - 0.9) > abs(mu_auto - 0.9) + 0.03, (mu_level, mu_auto)
+
+
+def test_road_bank_needs_a_settable_estimator():
+    class Plain:
+        stiffness = C0
+        stiffness_std = 0.01 * C0
+
+        def update(self, y, tau, vx):
+            pass
+
+        def reset(self):
+            pass
+
+    assert RiskPipeline(Plain()).bank_estimate is None  # the default "auto" leaves it as it is
+    with pytest.raises(TypeError, match="settable road_bank"):
+        RiskPipeline(Plain(), road_bank=0.02)
+    with pytest.raises(ValueError, match="'auto'"):
+        RiskPipeline(road_bank="automatic")

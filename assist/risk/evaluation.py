@@ -15,6 +15,9 @@ scenario's LQR rider, :func:`ptw_env.ride.ride_scenario`):
 ``dry_long``, ``wet_long``
     The same with curve entries of 2.5 s instead of 1.2 s (``ramp_s``;
     rural-road clothoids instead of urban corners).
+``dry_bank``, ``wet_bank``
+    ``dry`` and ``wet`` on a road with a cross-fall (effects.md ``road_bank``), drawn from the
+    seed: 0.015-0.04 rad, either sign (roads are built with 0.02-0.04 for drainage).
 ``too_fast``
     :class:`CurveTooFast`: a damp road (``mu`` 0.55-0.62 throughout, drawn
     from the seed), three warm-up curves at 0.3 g, a straight, then a curve
@@ -60,7 +63,7 @@ SATURATION_FRACTION = 0.95
 #: warned 0.5 s ahead by reading the tires: ~0.3-0.5 s of lateral force to see it, plus the 0.5 s lead.
 WARNABLE_S = 1.0
 #: Ride types of :func:`make_case`.
-KINDS = ("dry", "wet", "dry_long", "wet_long", "too_fast")
+KINDS = ("dry", "wet", "dry_long", "wet_long", "too_fast", "dry_bank", "wet_bank")
 
 
 @dataclass(frozen=True)
@@ -144,7 +147,7 @@ class RideCase:
     seed: int
     scenario: Scenario
     friction: FrictionSchedule
-    effects: str = EVAL_EFFECTS
+    effects: Any = EVAL_EFFECTS
     noise_pct: float = 5.0
     notes: dict = field(default_factory=dict)
 
@@ -163,12 +166,19 @@ def make_case(kind: str, seed: int) -> RideCase:
                                                                                "overspeed": sc.overspeed})
     ramp = 2.5 if kind.endswith("_long") else 1.2
     sc = make_scenario("urban", lateral_g=0.5, duration_s=60.0, ramp_s=ramp, seed=seed)
+    effects: Any = EVAL_EFFECTS
+    notes: dict[str, Any] = {}
+    if kind.endswith("_bank"):
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 91]))
+        bank = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.015, 0.04))
+        effects, notes = [EVAL_EFFECTS, f"road_bank:bank_rad={bank!r}"], {"bank_rad": bank}
     if kind.startswith("dry"):
-        return RideCase(kind, seed, sc, FrictionSchedule.constant(0.9))
+        return RideCase(kind, seed, sc, FrictionSchedule.constant(0.9), effects=effects, notes=notes)
     prof = sc.profile(0.01)
     s_mid = float(prof.s[len(prof.s) // 2])
     return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s_mid, mu_before=0.9, mu_patch=0.45, ramp=2.0),
-                    notes={"patch_start_m": s_mid, "patch_start_s": float(prof.t[len(prof.t) // 2])})
+                    effects=effects,
+                    notes={**notes, "patch_start_m": s_mid, "patch_start_s": float(prof.t[len(prof.t) // 2])})
 
 
 def true_utilisation(states: np.ndarray, vx: np.ndarray, mu: np.ndarray, friction: FrictionSchedule,

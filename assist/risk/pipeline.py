@@ -21,6 +21,8 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from ptw_env.vehicle import G
+
 from .monitor import PathAhead, RiskAssessment, RiskMonitor
 
 class MonitorInputs(NamedTuple):
@@ -67,10 +69,11 @@ def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, road_bank
     reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s], on a road of known bank
     ``road_bank`` [rad] (effects.md ``road_bank``; default level).
 
-    The road must be known: the model has no bank, so a bank's steady side force is read as a
-    stiffness change (measured on a simulated urban ride at friction 0.9: ``mu_hat`` ends at 1.07 on a
-    0.02 rad bank, the usual cross-fall of a road, and swings between 0.4 and 1.4 on 0.04 rad; with
-    the bank given, 0.92 and 0.94). ``ptw-assist diagnose`` names and sizes a bank on a log.
+    The road's bank must be known: the model has no other place for it, so a bank's steady side force
+    is read as a stiffness change (measured on a simulated urban ride at friction 0.9: ``mu_hat`` ends
+    at 1.07 on a 0.02 rad bank, the usual cross-fall of a road, and swings between 0.4 and 1.4 on
+    0.04 rad; with the bank given, 0.92 and 0.94). :class:`RiskPipeline` estimates it on line by
+    default (:class:`BankEstimate`); ``ptw-assist diagnose`` names and sizes one on a log.
 
     Why this one: it sees a friction drop from the steering response to the rider's torque even on a
     straight (on the wet-patch rides of :mod:`assist.risk.evaluation` it reads 0.9 -> ~0.5 within a
@@ -88,6 +91,76 @@ def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, road_bank
     return AdaptiveObserver(design, parametrisation="friction", stiffness_walk=FRICTION_WALK, road_bank=road_bank)
 
 
+class BankEstimate:
+    """The road bank from the IMU, on line: ``beta_hat = asin(LP(a_y - v_x r) / g)``.
+
+    Row 3 of model.md with effects.md's ``road_bank`` reads ``M (vy' + vx r) + e34 r' + e35 phi'' +
+    e36 delta'' = Fyf + Fyr - M g sin(beta)``, and the lateral accelerometer gives ``a_y = (Fyf +
+    Fyr) / M`` (:meth:`ptw_env.vehicle.Vehicle.ay_row`), so
+
+    .. math::
+
+        a_y - v_x r = \\dot v_y + (e_{34} \\dot r + e_{35} \\ddot\\phi + e_{36} \\ddot\\delta) / M
+                    + g \\sin\\beta .
+
+    Every term but the last is a derivative of a bounded signal, large in curves (a curve entry's
+    ``vy'`` and ``r'``): the estimate takes only samples ridden straight (the yaw rate low-passed over
+    ``straight_tau_s`` = 0.5 s below ``straight_yaw_rate`` = 0.05 rad/s), averages them until
+    ``tau_s`` (10 s) of straight riding have been seen, then low-passes them with that time
+    constant; it says 0 (level) until ``warmup_s`` (3 s) of straight riding, and holds in curves. What it cannot tell from a bank: a yaw-rate gyro bias ``b`` (it
+    reads as ``-v_x b / g``; 0.01 rad/s at 15 m/s is 0.015 rad), a lateral accelerometer offset,
+    a bank that changes faster than ``tau_s`` of straight riding.
+
+    Measured (``scripts/eval_risk.py --road-bank auto``, 20 seeds per ride type, README): on
+    banked roads (0.015-0.04 rad) it removes the friction estimate's bias; on level roads it adds
+    some false cautions (its noise moves the estimate).
+
+    >>> be = BankEstimate(tau_s=1.0)
+    >>> for _ in range(1000):
+    ...     b = be.update(ay=9.81 * math.sin(0.03), yaw_rate=0.0, vx=15.0)
+    >>> round(b, 4)
+    0.03
+    """
+
+    def __init__(self, tau_s: float = 10.0, dt: float = 0.01, limit: float = 0.3, record: bool = False,
+                 straight_yaw_rate: float = 0.05, straight_tau_s: float = 0.5, warmup_s: float = 3.0) -> None:
+        for name, v in (("tau_s", tau_s), ("dt", dt), ("limit", limit), ("straight_yaw_rate", straight_yaw_rate),
+                        ("straight_tau_s", straight_tau_s), ("warmup_s", warmup_s)):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"BankEstimate {name} must be a positive number, got {v!r}")
+        self.tau_s, self.dt, self.limit = float(tau_s), float(dt), float(limit)
+        self.straight_yaw_rate, self.straight_tau_s = float(straight_yaw_rate), float(straight_tau_s)
+        self.warmup_s = float(warmup_s)
+        #: keep every estimate since the last reset in :attr:`history`
+        self.record = bool(record)
+        self.reset()
+
+    def reset(self) -> None:
+        self._f = 0.0
+        self._n = 0
+        self._r = math.nan
+        self.bank = 0.0
+        self.history: list[float] | None = [] if self.record else None
+
+    def update(self, ay: float, yaw_rate: float, vx: float) -> float:
+        """Take one sample (``a_y`` [m/s^2], ``r`` [rad/s], ``v_x`` [m/s]; NaN: skipped); the bank [rad]."""
+        z = float(ay) - float(vx) * float(yaw_rate)
+        r = float(yaw_rate)
+        if math.isfinite(r):  # |low-passed yaw rate| below straight_yaw_rate: riding straight
+            ar = 1.0 - math.exp(-self.dt / self.straight_tau_s)
+            self._r = r if math.isnan(self._r) else self._r + ar * (r - self._r)
+        if math.isfinite(z) and abs(self._r) < self.straight_yaw_rate:
+            # the mean of the straight samples so far, then a low-pass of time constant tau_s
+            self._n += 1
+            a = max(1.0 - math.exp(-self.dt / self.tau_s), 1.0 / self._n)
+            self._f += a * (z - self._f)
+            if self._n * self.dt >= self.warmup_s:  # before: too few samples, the level road stands
+                self.bank = math.asin(max(-math.sin(self.limit), min(math.sin(self.limit), self._f / G)))
+        if self.history is not None:
+            self.history.append(self.bank)
+        return self.bank
+
+
 class RiskPipeline:
     """One estimator and one monitor, fed sample by sample.
 
@@ -97,21 +170,45 @@ class RiskPipeline:
         Default: :func:`default_estimator` ().
     monitor : RiskMonitor, optional
         Default: :class:`RiskMonitor` with its defaults.
+    road_bank : "auto", float or None
+        ``"auto"`` (default): the bank is estimated on line by :class:`BankEstimate` and given to
+        the estimator before every sample, if the estimator has a settable ``road_bank`` (as
+        :class:`~assist.adaptive_observer.AdaptiveObserver` has; others are left as they are). A
+        number [rad]: that bank, fixed (the estimator must take it). ``None``: leave the estimator as
+        it is (a level road for :func:`default_estimator`). Why on line by default: roads are built
+        with a cross-fall of 0.02-0.04 rad, and a level-road estimator reads it as grip
+        (``scripts/eval_risk.py``, 20 dry rides on such banks: friction over-estimated by up to 45 %
+        and a false danger in 9 of them; estimated on line, none, and the level-road rides are as good).
     """
 
-    def __init__(self, estimator=None, monitor: RiskMonitor | None = None) -> None:
+    def __init__(self, estimator=None, monitor: RiskMonitor | None = None,
+                 road_bank: float | str | None = "auto") -> None:
         self.estimator = default_estimator() if estimator is None else estimator
         if not isinstance(self.estimator, StiffnessEstimator):
             raise TypeError("estimator must have update(y, tau, vx), reset(), stiffness and stiffness_std; "
                             f"got {type(self.estimator).__name__}")
         self.monitor = RiskMonitor() if monitor is None else monitor
+        self.bank_estimate: BankEstimate | None = None
+        settable = hasattr(self.estimator, "road_bank")
+        if road_bank == "auto":
+            if settable:
+                self.bank_estimate = BankEstimate(dt=float(getattr(self.estimator, "dt", 0.01)))
+        elif isinstance(road_bank, str):
+            raise ValueError(f"road_bank must be 'auto', a number [rad] or None, got {road_bank!r}")
+        elif road_bank is not None:
+            if not settable:
+                raise TypeError(f"road_bank needs an estimator with a settable road_bank; "
+                                f"{type(self.estimator).__name__} has none")
+            self.estimator.road_bank = road_bank
         self._vx = math.nan
         self.last_inputs: MonitorInputs | None = None
 
     def reset(self) -> None:
-        """Reset the estimator and the monitor."""
+        """Reset the estimator, the bank estimate and the monitor."""
         self.estimator.reset()
         self.monitor.reset()
+        if self.bank_estimate is not None:
+            self.bank_estimate.reset()
         self._vx = math.nan
 
     def update(self, t: float, y, tau: float, vx: float, path: PathAhead | None = None,
@@ -128,6 +225,8 @@ class RiskPipeline:
             self._vx = vx
         elif not math.isfinite(self._vx):
             raise ValueError(f"vx is missing at t = {t} s and no earlier speed is known")
+        if self.bank_estimate is not None:
+            self.estimator.road_bank = self.bank_estimate.update(y[4], y[1], self._vx)
         self.estimator.update(y, tau, vx)
         est = self.estimator
         xh = getattr(est, "x_hat", None)
@@ -147,4 +246,4 @@ class RiskPipeline:
         return self.monitor.update(*self.last_inputs)
 
 
-__all__ = ["MonitorInputs", "OUTPUTS", "RiskPipeline", "StiffnessEstimator", "default_estimator"]
+__all__ = ["BankEstimate", "MonitorInputs", "OUTPUTS", "RiskPipeline", "StiffnessEstimator", "default_estimator"]
