@@ -33,6 +33,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from tqdm import tqdm
 
+from ptw_env.cli import _bank
+
 from assist.risk.evaluation import KINDS, WARNABLE_S, estimator_figures, make_case, run_case
 from assist.risk.offline import plot_risk, replay
 from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
@@ -250,11 +252,13 @@ def main(argv: list[str] | None = None) -> int:
     add_overwrite(p)
     a = p.parse_args(argv)
     global _ROAD_BANK
-    try:
-        _ROAD_BANK = {"auto": "auto", "none": None}.get(a.road_bank.lower()) if a.road_bank.lower() in (
-            "auto", "none") else float(a.road_bank)
-    except ValueError:
-        p.error(f"--road-bank: 'auto', 'none' or a number in rad, got {a.road_bank!r}")
+    if a.road_bank.lower() in ("auto", "none"):
+        _ROAD_BANK = None if a.road_bank.lower() == "none" else "auto"
+    else:
+        try:
+            _ROAD_BANK = _bank(a.road_bank)  # the CLI's check: a finite angle in rad, |bank| < 0.5
+        except argparse.ArgumentTypeError as e:
+            p.error(f"--road-bank: 'auto', 'none' or {e}")
     kinds = [k for k in a.kinds.split(",") if k]
     bad = [k for k in kinds if k not in KINDS]
     if bad or a.seeds < 1:

@@ -61,13 +61,13 @@ class StiffnessEstimator(Protocol):
 FRICTION_WALK = 0.05
 
 
-def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, road_bank: float = 0.0):
+def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01):
     """The LPV adaptive observer for the risk warning: Kalman vertex gains
     (:func:`assist.adaptive_design.kalman_design`) and one friction scale for all four stiffnesses
     (``parametrisation="friction"``, [1]_ sec. II-C ``Theta = mu Theta_0``), sensitivity law with the
     random walk :data:`FRICTION_WALK`; designed for ``noise_pct`` % sensor noise (``None``: the
-    reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s], on a road of known bank
-    ``road_bank`` [rad] (effects.md ``road_bank``; default level).
+    reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s]; its plant's road bank
+    (``road_bank``, rad) is set by :class:`RiskPipeline`.
 
     The road's bank must be known: the model has no other place for it, so a bank's steady side force
     is read as a stiffness change (measured on a simulated urban ride at friction 0.9: ``mu_hat`` ends
@@ -88,7 +88,7 @@ def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, road_bank
 
     pct = 0.5 if noise_pct is None else max(float(noise_pct), 0.5)
     design = default_kalman_design(AdaptiveDesignOptions(noise_pct=pct, dt=round(float(dt), 9)))
-    return AdaptiveObserver(design, parametrisation="friction", stiffness_walk=FRICTION_WALK, road_bank=road_bank)
+    return AdaptiveObserver(design, parametrisation="friction", stiffness_walk=FRICTION_WALK)
 
 
 class BankEstimate:
