@@ -50,16 +50,16 @@ At every speed, with no speed-dependent threshold:
 5. ``other``: what remains.
 
 For the reference scooter this gives, at every speed of 3-40 m/s, one weave
-pair, one wobble pair (8.7-11.8 Hz), one capsize, two tire modes and one
+pair, one wobble pair (8.8-11.8 Hz), one capsize, two tire modes and one
 ``other`` mode, which is a heavily damped non-oscillatory mechanical mode
 without a classical name. It survives the limit ``sigma -> 0`` (it is
 not a tire lag): below ~23 m/s it is the real steer (castering) mode
-(-29.7 at 5 m/s, steer share 0.84); above, the lateral-yaw-roll mode
-(-31.3 at 30 m/s). The exchange happens 0.3 m/s after the low-speed lateral-tire
-oscillation (-11.5 +/- 58.6j at 5 m/s, tire share 0.48) splits into two real
-modes (22.8 m/s): one continues as the rear tire lag (-181.5 at 40 m/s, Fyr
+(-29.6 at 5 m/s, steer share 0.84); above, the lateral-yaw-roll mode
+(-32.0 at 30 m/s). The exchange happens 0.15-0.2 m/s after the low-speed lateral-tire
+oscillation (-11.2 +/- 58.5j at 5 m/s, tire share 0.47) splits into two real
+modes (22.35 m/s): one continues as the rear tire lag (-182.2 at 40 m/s, Fyr
 participation 0.98), the other as the lateral mode, while the steer branch
-turns into the front tire lag (-186.2 at 40 m/s, Fyf participation 0.87;
+turns into the front tire lag (-185.6 at 40 m/s, Fyf participation 0.86;
 both ~ -vx/sigma = -200). Names follow the physics of the mode at
 that speed, not the identity of a branch.
 
@@ -72,7 +72,7 @@ on a linear prediction of each branch). The grid and its branches give the curve
 of :func:`plot_modes`, the brackets for :meth:`ModalResult.weave_boundaries`
 (root finding on the weave's real part), and :meth:`ModalResult.label_changes`,
 the places where a tracked branch changes name. For the reference scooter the
-only change is the tire/other exchange just after the 22.8 m/s split
+only change is the tire/other exchange just after the 22.35 m/s split
 described above (the test suite checks this, and that the label counts stay
 the same at every grid speed, so a classification that flickers fails).
 
@@ -82,9 +82,9 @@ Examples
 >>> res.labels[0]
 ('weave', 'weave', 'wobble', 'wobble', 'capsize', 'tire', 'tire', 'other')
 >>> [round(float(z.real), 2) for z in res.select("weave")[0]]
-[2.2, 2.2]
+[2.04, 2.04]
 >>> round(res.stability_speed(), 2)
-10.66
+9.32
 """
 
 from __future__ import annotations

@@ -91,13 +91,13 @@ Corrections to the printed Table V (and why)
 * ``eta`` is Sharp's normal trail (above); a file may give the ground trail
   instead (:mod:`ptw_env.sharp_geometry`, ``eta = trail cos(eps)``).
 
-Two findings that bear on the reference scooter (reported, not changed:
-model.md keeps Table IV as printed): Table V *confirms* model.md's
-resolutions of ``a71`` (``+C_f2/sigma_f vx``, positive) and ``a84``
-(``C_r1 l_r/sigma_r``, no ``vx`` factor); and Table IV's ``a45 = -3.665 vx``
-has the magnitude of Table V's formula (``a54 + e35 vx`` gives
-``-3.668 vx``) but the sign the gyroscopic skew-symmetry forbids, so it is
-most likely a misprint there (Table V's ``+`` is used here).
+Three findings that bear on the reference scooter: Table V *confirms*
+model.md's resolutions of ``a71`` (``+C_f2/sigma_f vx``, positive) and ``a84``
+(``C_r1 l_r/sigma_r``, no ``vx`` factor); and Table IV's printed ``a45 = -3.665
+vx`` has the magnitude of Table V's formula (``a54 + e35 vx`` gives ``-3.668
+vx``) but the sign the gyroscopic skew-symmetry forbids. This project reported
+it first; model.md now resolves it as ``+3.665 vx`` (its third resolved entry),
+so the reference scooter and the formula agree in every sign.
 
 Derived tyre data (:class:`~ptw_env.vehicle.TireParameters`)
 ------------------------------------------------------------

@@ -20,12 +20,17 @@ Provenance of the numbers
 All entries are the "Scooter Big Baseline" (BikeSim) of Fouka, Nehaoua,
 Arioui, *Motorcycle state estimation and tire cornering stiffness
 identification ... using observer based identifiers*, Table IV, as
-transcribed in ``model.md``. Two printed entries are resolved there:
+transcribed in ``model.md``. Three printed entries are resolved there:
 
 * ``a71`` is printed ``-5319 vx``; it is ``+5319 vx`` (a positive front camber
   stiffness reproduces ``a72`` to 0.3 %, a negative one misses by 4.6 %).
 * ``a84`` is printed ``79098 vx``; it is ``+79098`` with no ``vx`` factor
   (it is ``C_alpha_r l_r / sigma_r`` like its front twin ``a74``).
+* ``a45`` is printed ``-3.665 vx``; it is ``+3.665 vx``: Table V gives
+  ``a45 = +(i_fy/R_f + i_ry/R_r) vx`` and ``a54 = -(e35 + i_fy/R_f + i_ry/R_r) vx``,
+  so the printed ``a54 = -175.048 vx`` gives ``+3.668``: the wheels' gyroscopic
+  roll-yaw coupling is skew-symmetric (``a45 = -(a54 + e35 vx)``). The weave
+  is unstable below 9.32 m/s (10.66 m/s with the printed sign).
 
 The yaw-moment arms ``a47 = 0.856`` and ``a48 = -0.624`` are kept as printed
 although the slip arms ``a74/a73 = 0.756`` and ``a84/a83 = 0.784`` differ.
@@ -204,7 +209,7 @@ _A1 = _entries(
     8,
     {
         (3, 4): -303.31,
-        (4, 4): -6.319, (4, 5): -3.665, (4, 6): 0.682,
+        (4, 4): -6.319, (4, 5): 3.665, (4, 6): 0.682,  # a45: resolved misprint (printed -3.665 vx)
         (5, 4): -175.048, (5, 6): -1.4622,
         (6, 4): -0.8685, (6, 5): 1.47,
         (7, 1): 5319.0,  # a71: resolved misprint (printed -5319 vx)
@@ -240,6 +245,7 @@ def reference_scooter() -> Vehicle:
             "E, A0, A1, B": "Fouka, Nehaoua, Arioui, Table IV (BikeSim Scooter Big Baseline), as in shared/spec/model.md",
             "a71": "printed -5319 vx, taken +5319 vx (model.md: positive camber stiffness reproduces a72 to 0.3 %)",
             "a84": "printed 79098 vx, taken +79098 (model.md: C_alpha_r l_r / sigma_r, like a74)",
+            "a45": "printed -3.665 vx, taken +3.665 vx (model.md: Table V's +(i_fy/R_f + i_ry/R_r) vx; a54 + e35 vx = -3.668 vx, so the gyroscopic coupling is skew)",
             "tires": "derived from rows 7-8 with sigma = 0.2 m (model.md, derived nominal tire parameters)",
             "Fzf, Fzr": "M g arms from a47, a48 (model.md)",
             "vmin, vmax": "ptw-assist choice: 3-40 m/s (the tire modes reach |lambda| ~ 200 rad/s at 40 m/s)",
