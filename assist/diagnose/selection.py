@@ -28,7 +28,11 @@ over ``n`` scored values) and ``S_0`` that of the nominal model:
   say, passes: a rank test over windows would count every window where it
   cannot show as evidence against it.) A pair must, in addition, beat each of
   its two single causes in the same way (improvement and trimmed improvement
-  *over that single cause*), else its better single cause stands. Each test is
+  *over that single cause*), and pay for the parameters it adds to it
+  (``PARAM_PENALTY`` each, as a nested-model test must: without that price a
+  pair that adds a 2 % stiffness change to a payload of the right size was
+  accepted on a 0.002 noise-variance edge), else its better single cause
+  stands. Each test is
   a margin ``m_i`` (noise variances per value) that must be ``>= 0``; the
   **support margin** is their minimum.
 * **score**, the one number hypotheses are ranked by (``none`` scores 0):
@@ -155,7 +159,8 @@ def rank(names: list[str], causes: list[tuple[str, ...]], ks: list[int], S: np.n
             for c in causes[h]:
                 j = by_name.get(c)
                 if j is not None:
-                    margin = min(margin, _margins(Sw[j] - Sw[h], nw)[2])
+                    added = PARAM_PENALTY * (ks[h] - ks[j])  # the price of what the pair adds
+                    margin = min(margin, _margins(Sw[j] - Sw[h], nw)[2] - added)
         ok = margin >= 0.0 and penalised > 0.0
         score = penalised if ok else min(0.0, margin)
         out.append(Ranked(name, causes[h], ks[h], gain, gc, imp, tr, penalised, margin, score, ok))
