@@ -38,7 +38,9 @@ although the slip arms ``a74/a73 = 0.756`` and ``a84/a83 = 0.784`` differ.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import MappingProxyType
 from typing import Mapping
 
@@ -152,6 +154,28 @@ class Vehicle:
             (self.name, self.E, self.A0, self.A1, self.B, self.mass, self.tires, self.vmin, self.vmax,
              dict(self.provenance)),
         )
+
+    def identity(self) -> dict[str, str]:
+        """Which vehicle this is, for reports (cli.md: "its --json says which vehicle ran").
+
+        ``name``; ``model_sha256``: SHA-256 of the model itself (E, A0, A1, B, mass, tire
+        parameters, speed range; the same numbers give the same hash whatever file they came
+        from); and, for a vehicle loaded from a parameter file, ``file`` and ``file_sha256``
+        (SHA-256 of the file's bytes).
+        """
+        h = hashlib.sha256()
+        for m in (self.E, self.A0, self.A1, self.B):
+            h.update(np.ascontiguousarray(m, dtype=np.float64).tobytes())
+        h.update(repr((float(self.mass), self.tires, float(self.vmin), float(self.vmax))).encode())
+        out = {"name": self.name, "model_sha256": h.hexdigest()}
+        f = self.provenance.get("file")
+        if f:
+            out["file"] = str(f)
+            try:
+                out["file_sha256"] = hashlib.sha256(Path(f).read_bytes()).hexdigest()
+            except OSError:
+                pass
+        return out
 
     # -- the linear model -------------------------------------------------
     def A(self, vx: float) -> np.ndarray:

@@ -65,7 +65,7 @@ import math
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from .sharp import SharpParameterError, SharpParameters, rule_violation, sharp_vehicle
 from .sharp_geometry import LAYOUTS, layout_problems, sharp_parameters, spec
@@ -109,8 +109,10 @@ PRESETS: dict[str, str | None] = {
     REFERENCE_SCOOTER.name: None,
     "sharp1971": "sharp1971.toml",
     "cossalter-sport-touring": "cossalter_sport_touring.toml",
+    "robot-bicycle": "robot_bicycle.toml",
 }
-_ALIASES = {"reference": REFERENCE_SCOOTER.name}
+_ALIASES = {"reference": REFERENCE_SCOOTER.name, "robot_bicycle": "robot-bicycle",
+            "cossalter_sport_touring": "cossalter-sport-touring", "reference_scooter": REFERENCE_SCOOTER.name}
 
 
 def _norm_unit(u: str) -> str:
@@ -302,4 +304,37 @@ def load_vehicle(name_or_path: str | Path) -> Vehicle:
     return sharp_vehicle(params, name=name, vmin=values["vmin"], vmax=values["vmax"], provenance=prov)
 
 
-__all__ = ["PRESETS", "SECTIONS", "UNITS", "VehicleFileError", "load_parameters", "load_vehicle", "vehicle_names"]
+def vehicle_of_log(meta: Mapping[str, Any], log_path: str | Path | None = None) -> Vehicle | None:
+    """The vehicle a ride log's sidecar names (logs.md ``vehicle``, optional ``vehicle_file``).
+
+    ``vehicle_file`` wins when it can be found: as written, relative to the log's folder, or its
+    file name beside the log (sidecars of data shipped in a folder with its vehicle file);
+    else ``vehicle`` as a preset name or a file. ``None`` when the sidecar names no vehicle.
+
+    Raises
+    ------
+    VehicleFileError
+        The sidecar names a vehicle that is neither a preset nor a readable file; the
+        message names the sidecar's key and value.
+    """
+    where = Path(log_path).with_suffix(".json") if log_path is not None else Path("sidecar")
+    vfile, vname = meta.get("vehicle_file"), meta.get("vehicle")
+    if vfile is not None:
+        if not isinstance(vfile, str) or not vfile:
+            raise VehicleFileError(f"{where}: 'vehicle_file' must be a path (a string), got {vfile!r}")
+        base = Path(log_path).parent if log_path is not None else Path(".")
+        for cand in (Path(vfile), base / vfile, base / Path(vfile).name):
+            if cand.is_file():
+                return load_vehicle(cand)
+    if vname is None:
+        return None
+    if not isinstance(vname, str) or not vname:
+        raise VehicleFileError(f"{where}: 'vehicle' must be a preset name or a file (a string), got {vname!r}")
+    try:
+        return load_vehicle(vname)
+    except VehicleFileError as exc:
+        raise VehicleFileError(f"{where}: 'vehicle' = {vname!r}: {exc}") from None
+
+
+__all__ = ["PRESETS", "SECTIONS", "UNITS", "VehicleFileError", "load_parameters", "load_vehicle", "vehicle_names",
+           "vehicle_of_log"]

@@ -233,9 +233,15 @@ def test_auto_window_and_too_short_logs():
     assert auto_window(90.0, 0.1) == 2.0
     assert auto_window(24.0, 0.1) == pytest.approx(1.4)
     log = ride("double_lane_change", seed=1, duration_s=20.0)
-    short = type(log)(t=log.t[:1000], columns={k: v[:1000] for k, v in log.columns.items()}, meta={})
-    with pytest.raises(DiagnoseInputError, match=r"usable replay window.*at least 16"):
-        diagnose(short, progress=False)
+    assert auto_window(10.0, 0.1) == pytest.approx(0.6)  # 16 windows of a short real ride
+    assert auto_window(5.0, 0.1) == pytest.approx(0.5)  # not below MIN_WINDOW_S
+    tiny = type(log)(t=log.t[:350], columns={k: v[:350] for k, v in log.columns.items()}, meta={})
+    with pytest.raises(DiagnoseInputError, match=r"usable replay window.*at least 8"):
+        diagnose(tiny, progress=False)  # 3.5 s: 6 windows of 0.5 s
+    short = type(log)(t=log.t[:600], columns={k: v[:600] for k, v in log.columns.items()}, meta={})
+    rep = diagnose(short, pairs=False, progress=False)  # 6 s: 11 windows, a report that says so
+    notes = rep.method["notes"]
+    assert any("held-out evidence is thin" in n for n in notes), notes
 
 
 def test_bad_log_file_is_named_with_line_and_column(tmp_path):

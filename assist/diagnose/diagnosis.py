@@ -29,13 +29,13 @@ import numpy as np
 from ptw_env.logs import RideLog, read_log
 from ptw_env.sensors import DEFAULT_NOISE_STD
 from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
+from ptw_env.vehicle_files import VehicleFileError, vehicle_of_log
 
 from . import selection
 from .data import DiagnoseInputError, auto_window, make_windows
 from .hypotheses import (MAX_NFEV, PAIR_MIN, PAIR_PARTNERS, PAIR_PARTNERS_SCORE, PAIR_TOP, HypothesisFitter,
                          all_hypotheses)
 from .noise import noise_levels
-from .params import NOMINAL, to_causes
 from .replay import Replay
 from .report import DiagnosisReport, sig
 from .where import breakdown
@@ -114,7 +114,9 @@ def diagnose(
         (road bank + gyro bias, tire stiffness + payload:
         ``tests/test_diagnose_hidden_pair.py``, the slow sweep) are found.
     vehicle : Vehicle, optional
-        The nominal vehicle (default the reference scooter).
+        The nominal vehicle (diagnose.md): default the vehicle the log's sidecar names
+        (:func:`ptw_env.vehicle_files.vehicle_of_log`), else the reference scooter. The
+        hypotheses are sized relative to it (:func:`assist.diagnose.params.param_set`).
     encoder_quantum : float, None or "auto"
         Steering encoder step [rad] (:func:`assist.diagnose.noise.noise_levels`).
     max_nfev : int
@@ -153,10 +155,14 @@ def diagnose(
             f"diagnose: encoder_quantum must be a step in rad, None or 'auto', got {encoder_quantum!r}")
     if pairs not in (True, False, "all"):
         raise DiagnoseInputError(f"diagnose: pairs must be True, False or 'all', got {pairs!r}")
-    vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
-    if not isinstance(vehicle, Vehicle):
+    if not (vehicle is None or isinstance(vehicle, Vehicle)):
         raise DiagnoseInputError(f"diagnose: vehicle must be a ptw_env.vehicle.Vehicle, got {type(vehicle).__name__}")
     log, name = _load(log_or_path)
+    if vehicle is None:  # diagnose.md: --vehicle, else the sidecar's vehicle, else the reference scooter
+        try:
+            vehicle = vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER
+        except VehicleFileError as exc:
+            raise DiagnoseInputError(str(exc)) from None
     if window_s is None:
         window_s = auto_window(log.duration_s, lead_s)
     win, notes = make_windows(log, window_s, lead_s, vehicle.vmin, vehicle.vmax, source=name)
@@ -166,7 +172,7 @@ def diagnose(
 
     # 1. nominal replay (weighted by the reference sensors' noise), noise levels from its residual
     replay = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in chans]), vehicle)
-    r, _ = replay.fit_states(NOMINAL[None], all_w)
+    r, _ = replay.fit_states(replay.params.nominal[None], all_w)
     noise, quantum = noise_levels(r[0] * replay.sigma, win.score, chans, encoder_quantum)
     replay.set_sigma(np.array([noise[c] for c in chans]))
 
@@ -221,7 +227,7 @@ def diagnose(
 
     order = selection.order(ranked)
     hyp_json = [
-        {"causes": to_causes(r.causes, fits[r.name].z), "gain": round(r.gain, 4), "score": round(r.score, 4),
+        {"causes": replay.params.to_causes(r.causes, fits[r.name].z), "gain": round(r.gain, 4), "score": round(r.score, 4),
          "improvement": round(r.improvement, 4), "trimmed_improvement": round(r.trimmed, 4),
          "support_margin": round(r.margin, 4), "supported": bool(r.supported)}
         for r in order
@@ -241,7 +247,8 @@ def diagnose(
                  f"(< 0, how far they fall short of acceptance); hypotheses are listed by this score",
         "support": f"held-out improvement >= {selection.MIN_IMPROVEMENT} noise variances per value, >= half "
                    f"that without the {selection.TRIM:.0%} most improved held-out windows (at least one), "
-                   f"penalised improvement > 0, and for a pair the same over each of its single causes; "
+                   f"penalised improvement > 0, and for a pair the same over each of its single causes, paying "
+                   f"{selection.PARAM_PENALTY} for each parameter it adds; "
                    f"support_margin is the smallest margin of these tests",
         "explained": f"held-out RMS residual <= {1 + selection.EXPLAINED_TOL:g} x noise in every channel",
         "notes": notes,
@@ -253,7 +260,7 @@ def diagnose(
     return DiagnosisReport(
         log=name,
         explained=explained,
-        causes=to_causes(verdict.causes, fits[verdict.name].z),
+        causes=replay.params.to_causes(verdict.causes, fits[verdict.name].z),
         gain=verdict.gain,
         gain_channels=verdict.gain_channels,
         nominal_rmse={c: float(v) for c, v in zip(chans, rms_0)},

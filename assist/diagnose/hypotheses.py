@@ -15,7 +15,7 @@ with its own least-squares initial state):
 Search (all through the batched simulator, never a Python loop over vehicles):
 
 1. **screening**: every single cause on a coarse grid of sizes
-   (:data:`GRIDS`), all causes and sizes batched (``candidates x windows``
+   (:attr:`assist.diagnose.params.ParamSet.grids`, in units of the vehicle), all causes and sizes batched (``candidates x windows``
    vehicles, array-valued effect parameters), on every other fitting window;
 2. **refinement**: :func:`scipy.optimize.least_squares` (trust-region
    reflective, bounded) from the best grid point; its Jacobian is forward
@@ -38,22 +38,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .params import CAUSES, LOWER, NOMINAL, PARAMS, SCALE, UPPER
+from .params import CAUSES, GRIDS, PARAMS
 from .replay import STATE_STEPS, Replay
 
-#: Screening grids per cause, internal coordinates (one array per parameter; the grid is their product).
-GRIDS: dict[str, tuple[tuple[float, ...], ...]] = {
-    "tire_stiffness": ((0.5, 0.7, 1.0, 1.4, 2.0),) * 2,
-    "tire_saturation": ((0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0),),  # 1/mu_peak
-    "road_bank": ((-0.15, -0.08, -0.04, -0.02, 0.02, 0.04, 0.08, 0.15),),
-    "roll_moment_offset": ((-200.0, -80.0, -30.0, -10.0, 10.0, 30.0, 80.0, 200.0),),
-    "payload": ((-80.0, -40.0, 40.0, 80.0, 150.0, 250.0, 400.0),),
-    "steer_damping": ((3.0, 6.0, 9.0, 16.0, 22.0, 30.0, 45.0, 70.0),),
-    "relaxation_length": ((0.05, 0.1, 0.14, 0.28, 0.4, 0.6, 0.9, 1.3),),
-    "gyro_bias": ((-0.02, 0.0, 0.02),) * 2,
-    "ay_frame": ((-1.0, -0.5, -0.25, 0.25, 0.5, 1.0),),
-    "sensor_delay": ((0.005, 0.01, 0.02, 0.03, 0.045, 0.06, 0.08, 0.1),),
-}
 #: Relative forward-difference step of the Jacobian (fraction of each parameter's scale).
 FD_STEP = 1e-3
 #: A pair is fitted only when each of its causes alone improves the fitting windows by this much
@@ -146,7 +133,8 @@ class HypothesisFitter:
         self.replay = replay
         self.widx = np.asarray(widx)
         self.max_nfev = int(max_nfev)
-        self.nominal_cost = float(self.costs(NOMINAL[None])[0])
+        self.params = replay.params  # the vehicle's parameter set: nominal, bounds, scales, grids
+        self.nominal_cost = float(self.costs(self.params.nominal[None])[0])
         self.n_values = int(replay.win.score[self.widx].sum())
 
     # -- evaluation -------------------------------------------------------------
@@ -164,12 +152,13 @@ class HypothesisFitter:
     def screen(self, causes: list[str]) -> dict[str, tuple[np.ndarray, float]]:
         """Best grid point of each single cause, on every other fitting window (a start for
         :meth:`refine`; all causes and sizes batched). cause -> (z, cost on those windows)."""
-        Z, owner = [NOMINAL.copy()], ["none"]
+        nominal = self.params.nominal
+        Z, owner = [nominal.copy()], ["none"]
         for c in causes:
-            for combo in itertools.product(*GRIDS[c]):
-                z = NOMINAL.copy()
+            for combo in itertools.product(*self.params.grids[c]):
+                z = nominal.copy()
                 z[list(CAUSES[c])] = combo
-                if not np.array_equal(z, NOMINAL):
+                if not np.array_equal(z, nominal):
                     Z.append(z)
                     owner.append(c)
         r, _ = self.replay.fit_states(np.array(Z), self.widx[::2])  # every other fitting window
@@ -194,12 +183,12 @@ class HypothesisFitter:
         """
         idx = list(hyp.idx)
         k = len(idx)
-        lo, hi, sc = LOWER[idx], UPPER[idx], SCALE[idx]
+        lo, hi, sc = self.params.lower[idx], self.params.upper[idx], self.params.scale[idx]
         rp, widx = self.replay, self.widx
         cache: dict[bytes, tuple[np.ndarray, np.ndarray, tuple]] = {}
 
         def full(P: np.ndarray) -> np.ndarray:
-            Z = np.repeat(NOMINAL[None], len(P), axis=0)
+            Z = np.repeat(self.params.nominal[None], len(P), axis=0)
             Z[:, idx] = P
             return Z
 
@@ -251,13 +240,14 @@ class HypothesisFitter:
         rp, widx = self.replay, self.widx
         z = fit.z
         own = set(fit.hypothesis.idx)
-        others = [i for i in range(len(PARAMS)) if i not in own]
+        others = [i for i in range(len(self.params.params)) if i not in own]
+        scale, upper = self.params.scale, self.params.upper
         x = rp.x_guess[widx][None]
         r0, P = rp.linearise(z[None], widx, x)
         _, xb = rp.gauss_newton(z[None], widx, x, r0, P, STATE_STEPS)
         Q = np.repeat(z[None], len(others) + 1, axis=0)  # row 0: unmoved, same procedure
         for j, i in enumerate(others):
-            Q[j + 1, i] += SCALE[i] if z[i] + SCALE[i] <= UPPER[i] else -SCALE[i]
+            Q[j + 1, i] += scale[i] if z[i] + scale[i] <= upper[i] else -scale[i]
         m = len(Q)
         xm = np.broadcast_to(xb, (m,) + xb.shape[1:])
         Pm = tuple(np.broadcast_to(a, (m,) + a.shape[1:]) for a in P)
@@ -288,7 +278,8 @@ class HypothesisFitter:
         second effect whose own single fit is outranked by causes mimicking the first), plus
         the pairs among the :data:`PAIR_TOP` best. ``pair_min=None``: every pair.
         """
-        fits: dict[str, Fit] = {"none": Fit(Hypothesis(()), NOMINAL.copy(), self.nominal_cost)}
+        nominal = self.params.nominal
+        fits: dict[str, Fit] = {"none": Fit(Hypothesis(()), nominal.copy(), self.nominal_cost)}
         singles = [h for h in hypotheses if h.k and len(h.causes) == 1]
         multi = [h for h in hypotheses if len(h.causes) > 1]
         starts = self.screen([h.causes[0] for h in singles])
@@ -317,12 +308,12 @@ class HypothesisFitter:
         for h in multi:
             # start from the best of: all parts at their single optima, or one part alone
             # (two effects that each fit alone may together drive the model unstable)
-            starts = [NOMINAL.copy()]
+            starts = [nominal.copy()]
             for c in h.causes:
                 ii = list(CAUSES[c])
-                starts[0][ii] = fits[c].z[ii] if c in fits else NOMINAL[ii]
+                starts[0][ii] = fits[c].z[ii] if c in fits else nominal[ii]
                 if c in fits:
-                    z = NOMINAL.copy()
+                    z = nominal.copy()
                     z[ii] = fits[c].z[ii]
                     starts.append(z)
             cost = self.costs(np.array(starts))

@@ -14,6 +14,26 @@ saturation within any ride, so that a report never holds an infinity).
 physical ranges of :data:`ptw_env.effects.VOCABULARY`; ``sensor_delay`` is
 capped by the replay lead); ``scale`` is a typical size, used for
 finite-difference steps and for the optimiser's variable scaling.
+
+Every size that has a vehicle's unit is relative to the vehicle
+(:func:`param_set`, :class:`VehicleScales`), so that a 37 kg bicycle and a
+300 kg scooter are searched over the same *physical* hypotheses:
+
+* ``payload``: fractions of the vehicle's mass ``M`` (-0.4 M to 1.3 M);
+* ``roll_moment_offset``: fractions of the gravity roll stiffness ``a51``
+  [N m/rad] (row 5 of model.md), i.e. the lean-angle offset the moment holds
+  (up to 0.24 rad);
+* ``steer_damping``: multiples of the critical damping of the steer about its
+  trail stiffness, ``c_crit = 2 sqrt(e66 |a62|)`` [N m s/rad] (0 to 6.1
+  c_crit), with the vehicle's own ``-a66`` as the nominal (a vehicle without a
+  damper has 0);
+* ``relaxation_length``: multiples of the vehicle's own ``sigma`` (nominal),
+  0.1 to 7.5 sigma.
+
+For the reference scooter these reproduce the ranges the diagnosis was built
+with (payload -121..394 kg, moment +/-403 N m, damping 0-80 N m s/rad,
+relaxation 0.02-1.5 m). The dimensionless causes (stiffness scales, friction,
+bank, sensor offsets, frame gain, delay) keep their ranges.
 """
 
 from __future__ import annotations
@@ -24,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ptw_env.effects import DYNAMIC_CAUSES, SENSOR_CAUSES, VOCABULARY
+from ptw_env.vehicle import DELTA, DELTA_DOT, FYF, FYR, PHI, PHI_DOT, REFERENCE_SCOOTER, Vehicle
 
 
 @dataclass(frozen=True)
@@ -54,43 +75,148 @@ class ParamSpec:
         return v if not math.isfinite(v) else round(v, self.digits)
 
 
-def _spec(cause: str, name: str, lo: float, hi: float, scale: float, digits: int, inverse: bool = False) -> ParamSpec:
-    nominal = VOCABULARY[cause][name][0]
-    return ParamSpec(cause, name, 0.0 if inverse else float(nominal), lo, hi, scale, digits, inverse)
+@dataclass(frozen=True)
+class VehicleScales:
+    """The vehicle's own sizes that the diagnosis's hypotheses are expressed in (module docstring).
+
+    Attributes
+    ----------
+    mass : float
+        ``M`` [kg] (model.md ``e33``).
+    roll_stiffness : float
+        Gravity roll stiffness ``a51`` [N m/rad] (``(M_f j + M_r h) g``, Fouka et al. Table V).
+    steer_damping : float
+        The vehicle's own steering damping ``-a66`` [N m s/rad] (the nominal of ``steer_damping``).
+    steer_critical : float
+        ``2 sqrt(e66 |a62|)`` [N m s/rad]: critical damping of the steer about its trail stiffness.
+    sigma : float
+        Tire relaxation length [m] (``-1/a77`` per unit speed; the shorter axle's).
+    """
+
+    mass: float
+    roll_stiffness: float
+    steer_damping: float
+    steer_critical: float
+    sigma: float
+
+    @classmethod
+    def of(cls, vehicle: Vehicle) -> "VehicleScales":
+        """Read the scales off ``vehicle``'s matrices."""
+        sigma = float(min(-1.0 / vehicle.A1[FYF, FYF], -1.0 / vehicle.A1[FYR, FYR]))
+        c = 2.0 * math.sqrt(float(vehicle.E[DELTA_DOT, DELTA_DOT]) * abs(float(vehicle.A0[DELTA_DOT, DELTA])))
+        return cls(float(vehicle.mass), abs(float(vehicle.A0[PHI_DOT, PHI])),
+                   float(-vehicle.A0[DELTA_DOT, DELTA_DOT]), c, sigma)
 
 
-#: Every fitted parameter, in the order of the flat parameter vector.
-PARAMS: tuple[ParamSpec, ...] = (
-    _spec("tire_stiffness", "front_scale", 0.2, 3.0, 0.1, 3),
-    _spec("tire_stiffness", "rear_scale", 0.2, 3.0, 0.1, 3),
-    _spec("tire_saturation", "mu_peak", 1e-3, 4.0, 0.3, 3, inverse=True),
-    _spec("road_bank", "bank_rad", -0.3, 0.3, 0.01, 4),
-    _spec("roll_moment_offset", "moment_nm", -400.0, 400.0, 20.0, 1),
-    _spec("payload", "mass_kg", -120.0, 400.0, 20.0, 1),
-    _spec("steer_damping", "damping_nms", 0.0, 80.0, 2.0, 2),
-    _spec("relaxation_length", "sigma_m", 0.02, 1.5, 0.05, 3),
-    _spec("gyro_bias", "yaw_rate_bias", -0.3, 0.3, 0.005, 5),
-    _spec("gyro_bias", "roll_rate_bias", -0.3, 0.3, 0.005, 5),
-    _spec("ay_frame", "gravity_gain", -1.5, 1.5, 0.05, 3),
-    _spec("sensor_delay", "delay_s", 0.0, 0.1, 0.01, 4),
-)
-#: Causes in effects.md order (the vocabulary's), each with the indices of its parameters in :data:`PARAMS`.
+def _spec(cause: str, name: str, lo: float, hi: float, scale: float, digits: int, inverse: bool = False,
+          nominal: float | None = None) -> ParamSpec:
+    _, _, plo, phi = VOCABULARY[cause][name]
+    nom = VOCABULARY[cause][name][0] if nominal is None else nominal
+    if not inverse:  # keep the search inside effects.md's physical range
+        lo, hi = max(lo, plo), min(hi, phi)
+    return ParamSpec(cause, name, 0.0 if inverse else float(nom), lo, hi, scale, digits, inverse)
+
+
+def _digits(x: float, sig: int = 3) -> int:
+    """Decimals that keep ``sig`` significant figures of a typical size ``x``."""
+    return max(0, sig - 1 - int(math.floor(math.log10(abs(x))))) if x > 0 else 3
+
+
+#: Screening grid of each cause in units of its vehicle scale (module docstring): payload in M,
+#: roll moment in a51, damping in c_crit, relaxation length in sigma; the others as they are.
+_UNIT_GRIDS: dict[str, tuple[tuple[float, ...], ...]] = {
+    "tire_stiffness": ((0.5, 0.7, 1.0, 1.4, 2.0),) * 2,
+    "tire_saturation": ((0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0),),  # 1/mu_peak
+    "road_bank": ((-0.15, -0.08, -0.04, -0.02, 0.02, 0.04, 0.08, 0.15),),
+    "roll_moment_offset": ((-0.12, -0.048, -0.018, -0.006, 0.006, 0.018, 0.048, 0.12),),
+    "payload": ((-0.26, -0.13, 0.13, 0.26, 0.5, 0.82, 1.3),),
+    "steer_damping": ((0.23, 0.46, 0.69, 1.22, 1.68, 2.3, 3.45, 5.36),),
+    "relaxation_length": ((0.25, 0.5, 0.7, 1.4, 2.0, 3.0, 4.5, 6.5),),
+    "gyro_bias": ((-0.02, 0.0, 0.02),) * 2,
+    "ay_frame": ((-1.0, -0.5, -0.25, 0.25, 0.5, 1.0),),
+    "sensor_delay": ((0.005, 0.01, 0.02, 0.03, 0.045, 0.06, 0.08, 0.1),),
+}
+
+
+@dataclass(frozen=True)
+class ParamSet:
+    """The fitted parameters of one vehicle (:func:`param_set`): specs, bounds, scales and grids."""
+
+    vehicle_scales: VehicleScales
+    params: tuple[ParamSpec, ...]
+    grids: dict[str, tuple[tuple[float, ...], ...]]
+
+    @property
+    def nominal(self) -> np.ndarray:
+        return np.array([p.nominal for p in self.params])
+
+    @property
+    def lower(self) -> np.ndarray:
+        return np.array([p.lo for p in self.params])
+
+    @property
+    def upper(self) -> np.ndarray:
+        return np.array([p.hi for p in self.params])
+
+    @property
+    def scale(self) -> np.ndarray:
+        return np.array([p.scale for p in self.params])
+
+    def to_causes(self, causes: tuple[str, ...], z: np.ndarray) -> list[dict]:
+        """The report form ``[{"cause": ..., "params": {...}}]`` of a hypothesis at internal coordinates ``z``."""
+        if not causes:
+            return [{"cause": "none", "params": {}}]
+        return [{"cause": c, "params": {self.params[i].name: self.params[i].report(z[i]) for i in CAUSES[c]}}
+                for c in causes]
+
+
+def param_set(vehicle: Vehicle) -> ParamSet:
+    """Every fitted parameter of ``vehicle``, in the order of the flat parameter vector (module docstring)."""
+    s = VehicleScales.of(vehicle)
+    M, K, c, sg = s.mass, s.roll_stiffness, s.steer_critical, s.sigma
+    params = (
+        _spec("tire_stiffness", "front_scale", 0.2, 3.0, 0.1, 3),
+        _spec("tire_stiffness", "rear_scale", 0.2, 3.0, 0.1, 3),
+        _spec("tire_saturation", "mu_peak", 1e-3, 4.0, 0.3, 3, inverse=True),
+        _spec("road_bank", "bank_rad", -0.3, 0.3, 0.01, 4),
+        _spec("roll_moment_offset", "moment_nm", -0.24 * K, 0.24 * K, 0.012 * K, _digits(0.012 * K)),
+        _spec("payload", "mass_kg", -0.4 * M, 1.3 * M, 0.066 * M, _digits(0.066 * M)),
+        _spec("steer_damping", "damping_nms", 0.0, 6.1 * c, 0.15 * c, _digits(0.15 * c), nominal=s.steer_damping),
+        _spec("relaxation_length", "sigma_m", 0.1 * sg, 7.5 * sg, 0.25 * sg, _digits(0.25 * sg, 2), nominal=sg),
+        _spec("gyro_bias", "yaw_rate_bias", -0.3, 0.3, 0.005, 5),
+        _spec("gyro_bias", "roll_rate_bias", -0.3, 0.3, 0.005, 5),
+        _spec("ay_frame", "gravity_gain", -1.5, 1.5, 0.05, 3),
+        _spec("sensor_delay", "delay_s", 0.0, 0.1, 0.01, 4),
+    )
+    unit = {"roll_moment_offset": K, "payload": M, "steer_damping": c, "relaxation_length": sg}
+    grids = {cause: tuple(tuple(float(unit.get(cause, 1.0) * g) for g in axis) for axis in axes)
+             for cause, axes in _UNIT_GRIDS.items()}
+    return ParamSet(s, params, grids)
+
+
+#: The reference scooter's parameter set (the defaults of the module-level names below).
+REFERENCE = param_set(REFERENCE_SCOOTER)
+#: Every fitted parameter of the reference scooter, in the order of the flat parameter vector.
+PARAMS: tuple[ParamSpec, ...] = REFERENCE.params
+#: Causes in effects.md order (the vocabulary's), each with the indices of its parameters in :data:`PARAMS`
+#: (the same for every vehicle).
 CAUSES: dict[str, tuple[int, ...]] = {
     c: tuple(i for i, p in enumerate(PARAMS) if p.cause == c) for c in VOCABULARY
 }
 assert set(CAUSES) == set(DYNAMIC_CAUSES) | set(SENSOR_CAUSES)
-#: Internal coordinates of the nominal model.
-NOMINAL = np.array([p.nominal for p in PARAMS])
-LOWER = np.array([p.lo for p in PARAMS])
-UPPER = np.array([p.hi for p in PARAMS])
-SCALE = np.array([p.scale for p in PARAMS])
+#: Internal coordinates of the reference scooter's nominal model, and its search bounds and scales.
+NOMINAL = REFERENCE.nominal
+LOWER = REFERENCE.lower
+UPPER = REFERENCE.upper
+SCALE = REFERENCE.scale
+#: Screening grids of the reference scooter, internal coordinates.
+GRIDS = REFERENCE.grids
 
 
 def to_causes(causes: tuple[str, ...], z: np.ndarray) -> list[dict]:
-    """The report form ``[{"cause": ..., "params": {...}}]`` of a hypothesis at internal coordinates ``z``."""
-    if not causes:
-        return [{"cause": "none", "params": {}}]
-    return [{"cause": c, "params": {PARAMS[i].name: PARAMS[i].report(z[i]) for i in CAUSES[c]}} for c in causes]
+    """The report form of a hypothesis of the reference scooter (:meth:`ParamSet.to_causes`)."""
+    return REFERENCE.to_causes(causes, z)
 
 
-__all__ = ["ParamSpec", "PARAMS", "CAUSES", "NOMINAL", "LOWER", "UPPER", "SCALE", "to_causes"]
+__all__ = ["ParamSpec", "ParamSet", "VehicleScales", "param_set", "REFERENCE", "PARAMS", "CAUSES", "NOMINAL",
+           "LOWER", "UPPER", "SCALE", "GRIDS", "to_causes"]

@@ -56,15 +56,33 @@ batched simulation. Starting from the measured start state,
 nearly linear: the nonlinearity is ``sin(phi)`` and tire saturation).
 
 Integration: :func:`ptw_env.integrate.simulate` (RK4, inputs held over each
-sample) with as many substeps as keep ``|lambda h| <= TIRE_STEP`` for the
-fastest tire-relaxation mode ``lambda = -vx/sigma`` of the batch: 2 substeps
-(5 ms) for the reference scooter up to 40 m/s instead of the simulator's
-default 4, the same model at half the cost. On the noise-free reference log
-the replay residual does not change (checked down to 1 substep).
+sample) with as many substeps as keep ``|lambda h| <= EIG_STEP`` for the
+fastest eigenvalue of the batch: the vehicle's spectral radius
+``max |eig(E^-1 A(vx))|`` up to the batch's highest speed (computed once on a
+grid of the vehicle's speed range), raised for a shorter relaxation length
+(the tire modes scale with ``1/sigma``) and for a steering damping larger than
+the vehicle's (the steer mode ``-c/e66``). For the reference scooter this is
+the tire lag ``-vx/sigma`` at speed (2 substeps, 5 ms, up to 40 m/s instead of
+the simulator's default 4) and the wobble at low speed (1 substep); for a
+bicycle on 0.15 m relaxation it is the lateral-tire oscillation near 100
+rad/s at every speed, which the tire lag alone (``vx/sigma`` = 7-33 1/s at
+1-5 m/s) would miss. On the noise-free reference log the replay residual does
+not change (checked down to 1 substep).
+
+Nuisance-parameter scales in the vehicle's units: the tire-force corrections
+(:data:`STATE_SCALE`, finite-difference :data:`STATE_STEP`) are fractions
+:data:`FORCE_SCALE` and :data:`FORCE_STEP` of the weight ``M g`` (200 N and
+5 N on the reference scooter).
+
+A candidate model whose replay leaves the numbers (NaN or inf: diverged) gets a
+huge but finite misfit, and no information about the initial states from that
+window (its sensitivity is zero), so it loses every comparison; it is never
+an error.
 """
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -75,23 +93,35 @@ from ptw_env.vehicle import FYF, FYR, G, REFERENCE_SCOOTER, Vehicle
 
 from .data import Windows
 from .measurement import sensor_outputs
-from .params import CAUSES, PARAMS
+from .params import CAUSES, param_set
 
 #: Gauss-Newton steps on the initial states per evaluation of a hypothesis.
 STATE_STEPS = 2
-#: Largest ``|lambda h|`` of the fastest tire-relaxation mode (``lambda = -vx / sigma``) per RK4
-#: substep ``h``; sets the substeps of the replay (:meth:`Replay.substeps`).
-TIRE_STEP = 1.0
+#: Largest ``|lambda h|`` of the fastest eigenvalue of the replayed batch per RK4 substep ``h``
+#: (module docstring).
+EIG_STEP = 1.0
+#: Typical size of a tire-force correction of the initial state, as a fraction of the weight ``M g``.
+FORCE_SCALE = 0.067
+#: Finite-difference step on a tire-force initial state, as a fraction of the weight ``M g``.
+FORCE_STEP = FORCE_SCALE / 40.0
 #: Nuisance parameters per window: the 8 initial states and the speed correction (offset, ramp).
 NX = 10
-#: Finite-difference steps on the nuisance parameters (rad, rad, m/s, rad/s, rad/s, rad/s, N, N, m/s, m/s).
+#: Finite-difference steps on the nuisance parameters (rad, rad, m/s, rad/s, rad/s, rad/s, N, N, m/s, m/s)
+#: of the reference scooter (the forces are :data:`FORCE_STEP` of each vehicle's weight: :meth:`Replay.scales`).
 STATE_STEP = np.array([1e-3, 1e-3, 1e-2, 1e-3, 1e-3, 1e-3, 5.0, 5.0, 0.01, 0.01])
-#: Typical size of each correction (same units): the scale of the damping and of the prior.
+#: Typical size of each correction (same units): the scale of the damping and of the prior (forces:
+#: :data:`FORCE_SCALE` of the weight).
 STATE_SCALE = np.array([0.02, 0.005, 0.1, 0.02, 0.02, 0.05, 200.0, 200.0, 0.05, 0.05])
+#: Speeds per vehicle speed range on which the spectral radius is tabulated (substeps).
+_RHO_GRID = 41
 #: Damping of the initial-state fit (Levenberg-Marquardt / Tikhonov): a correction of one typical
 #: size (:data:`STATE_SCALE`) in a direction that changes the weighted residual norm by much less
 #: than this is not made (an initial state the scored outputs cannot see).
 DAMPING = 0.1
+
+#: Output magnitude taken as a diverged replay (any channel, physical units); such outputs are clipped
+#: to it, a finite misfit far beyond any real one.
+_DIVERGED = 1e6
 
 _SENSOR_ARGS = {
     ("gyro_bias", "yaw_rate_bias"): "yaw_rate_bias",
@@ -126,11 +156,38 @@ class Replay:
     def __init__(self, windows: Windows, sigma: np.ndarray, vehicle: Vehicle | None = None) -> None:
         self.win = windows
         self.vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
-        self._sigma0 = float(min(-1.0 / self.vehicle.A1[FYF, FYF], -1.0 / self.vehicle.A1[FYR, FYR]))
+        self.params = param_set(self.vehicle)  # the vehicle's hypotheses: nominal, bounds, grids
+        self.state_step, self.state_scale = self.scales(self.vehicle)
+        v = self.vehicle
+        self._rho_v = np.linspace(v.vmin, v.vmax, _RHO_GRID)
+        rho = np.array([np.abs(np.linalg.eigvals(v.state_matrix(float(x)))).max() for x in self._rho_v])
+        self._rho = np.maximum.accumulate(rho)  # fastest eigenvalue up to each speed
+        self._sigma0 = self.params.vehicle_scales.sigma
+        self._damping0 = max(self.params.vehicle_scales.steer_damping, 0.0)
         self.sim_seconds = 0.0
         self.sim_steps = 0
         self.set_sigma(sigma)
         self.x_guess = self._initial_guess()
+
+    @staticmethod
+    def scales(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray]:
+        """Finite-difference steps and typical sizes of the nuisance parameters of ``vehicle``
+        (:data:`STATE_STEP`, :data:`STATE_SCALE` with the tire forces in fractions of ``M g``)."""
+        step, scale = STATE_STEP.copy(), STATE_SCALE.copy()
+        weight = vehicle.mass * G
+        step[[FYF, FYR]] = FORCE_STEP * weight
+        scale[[FYF, FYR]] = FORCE_SCALE * weight
+        return step, scale
+
+    def substeps(self, dt: float, vmax: float, sigma_min: float, damping_max: float) -> int:
+        """RK4 substeps per sample for a batch up to speed ``vmax`` (module docstring)."""
+        rho = float(np.interp(vmax, self._rho_v, self._rho))
+        rho *= max(1.0, self._sigma0 / sigma_min)
+        if damping_max > self._damping0:
+            rho = max(rho, damping_max / float(self.vehicle.E[5, 5]))
+        if not math.isfinite(rho):
+            return 1
+        return max(1, int(math.ceil(dt * rho / EIG_STEP - 1e-9)))
 
     # -- weights --------------------------------------------------------------
     def set_sigma(self, sigma: np.ndarray) -> None:
@@ -162,7 +219,7 @@ class Replay:
         rows = np.repeat(Z, Ws, axis=0)  # (N, P): parameter row of each simulated vehicle
         dyn: dict[str, dict[str, np.ndarray]] = {}
         sens: dict[str, np.ndarray] = {}
-        for i, p in enumerate(PARAMS):
+        for i, p in enumerate(self.params.params):
             col = rows[:, i]
             if np.all(col == p.nominal):
                 continue
@@ -178,7 +235,8 @@ class Replay:
         vx = np.clip(vx + x0[:, 8:9] + x0[:, 9:10] * ramp, self.vehicle.vmin, self.vehicle.vmax)
         eff = Effects(dyn)
         sigma = float(np.min(dyn["relaxation_length"]["sigma_m"])) if "relaxation_length" in dyn else self._sigma0
-        nsub = max(1, int(np.ceil(w.dt * float(vx.max()) / (TIRE_STEP * sigma) - 1e-9)))
+        damping = float(np.max(dyn["steer_damping"]["damping_nms"])) if "steer_damping" in dyn else 0.0
+        nsub = self.substeps(w.dt, float(np.max(vx)), sigma, damping)
         t = time.perf_counter()
         X = simulate(np.ascontiguousarray(x0[:, :8]), tau, vx, dt=w.dt, effects=eff, vehicle=self.vehicle,
                      substeps=nsub)
@@ -186,8 +244,8 @@ class Replay:
         self.sim_steps += N * (w.n - 1)
         mass = self.vehicle.mass + (rows[:, CAUSES["payload"][0]] if "payload" in dyn else 0.0)
         Y = sensor_outputs(X, mass, w.dt, channels=w.channels, **sens)
-        if not np.all(np.isfinite(Y)):  # a candidate that diverges: a huge but finite misfit
-            Y = np.nan_to_num(Y, nan=1e6, posinf=1e6, neginf=-1e6)
+        if not np.all(np.abs(Y) < _DIVERGED):  # a candidate that diverges: a huge but finite misfit
+            Y = np.clip(np.nan_to_num(Y, nan=_DIVERGED, posinf=_DIVERGED, neginf=-_DIVERGED), -_DIVERGED, _DIVERGED)
         return Y.reshape(m, Ws, w.n, len(w.channels))
 
     def residual(self, Z: np.ndarray, widx: np.ndarray, x0: np.ndarray) -> np.ndarray:
@@ -235,19 +293,23 @@ class Replay:
         """
         Z = np.atleast_2d(np.asarray(Z, dtype=float))
         m, Ws = Z.shape[0], len(widx)
+        step, scale = self.state_step, self.state_scale
         X0 = np.repeat(np.asarray(x0, dtype=float)[None], NX + 1, axis=0)  # (NX + 1, m, Ws, NX)
         for j in range(NX):
-            X0[j + 1, :, :, j] += STATE_STEP[j]
+            X0[j + 1, :, :, j] += step[j]
         Y = self.outputs(np.tile(Z, (NX + 1, 1)), widx, X0.reshape((NX + 1) * m, Ws, NX)).reshape(NX + 1, m, Ws, -1)
         wt = self.weight[widx].reshape(1, Ws, -1)
         r0 = (self.win.Y[widx].reshape(1, Ws, -1) - Y[0]) * wt
         # weighted sensitivity per typical-size correction
-        J = (Y[1:] - Y[0][None]) * wt[None] * (STATE_SCALE / STATE_STEP)[:, None, None, None]  # (NX, m, Ws, nC)
+        J = (Y[1:] - Y[0][None]) * wt[None] * (scale / step)[:, None, None, None]  # (NX, m, Ws, nC)
+        # a diverged replay (outputs clipped to a huge misfit) tells nothing about the initial state
+        diverged = ~np.all(np.abs(Y) < _DIVERGED, axis=(0, 3))  # (m, Ws)
+        J = np.where(diverged[None, :, :, None], 0.0, J)
         JtJ = np.einsum("imwk,jmwk->mwij", J, J)
         Ainv = np.linalg.inv(JtJ + DAMPING**2 * np.eye(NX))
-        pinv = STATE_SCALE[None, None, :, None] * np.einsum("mwij,jmwk->mwik", Ainv, J)
+        pinv = scale[None, None, :, None] * np.einsum("mwij,jmwk->mwik", Ainv, J)
         # prior pull towards the measured start state: - lambda^2 D A^-1 D^-1 (x - x_guess)
-        prior = DAMPING**2 * STATE_SCALE[:, None] * Ainv / STATE_SCALE[None, :]
+        prior = DAMPING**2 * scale[:, None] * Ainv / scale[None, :]
         return r0.reshape(m, Ws, self.win.n, -1), (pinv, prior)
 
     def gauss_newton(self, Z: np.ndarray, widx: np.ndarray, x0: np.ndarray, r0: np.ndarray, pinv: tuple,
@@ -268,7 +330,7 @@ class Replay:
 
         def objective(x: np.ndarray, r: np.ndarray) -> np.ndarray:
             return (np.einsum("mwkc,mwkc->mw", r, r)
-                    + DAMPING**2 * np.sum(((x - xg) / STATE_SCALE) ** 2, axis=-1))
+                    + DAMPING**2 * np.sum(((x - xg) / self.state_scale) ** 2, axis=-1))
 
         x, r = np.array(x0, dtype=float), np.array(r0, dtype=float)
         f = objective(x, r)

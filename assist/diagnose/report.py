@@ -113,6 +113,7 @@ class DiagnosisReport:
             verdict["residual"] = self.residual
         return {
             "log": self.log,
+            "vehicle": self.vehicle.identity(),
             "nominal": {"rmse": {c: sig(v) for c, v in self.nominal_rmse.items()}, "where": self.nominal_where},
             "verdict": verdict,
             "hypotheses": self.hypotheses,
