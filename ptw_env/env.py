@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -17,6 +18,7 @@ from .integrate import Stepper
 from .scenarios import Scenario, make_scenario
 from .sensors import CHANNELS, SensorConfig, SensorModel
 from .vehicle import REFERENCE_SCOOTER, Vehicle
+from .vehicle_files import VehicleFileError, load_vehicle
 
 #: Fall threshold [rad]: the model is valid for |phi| <= 45 deg (model.md).
 FALL_ANGLE = math.radians(45.0)
@@ -77,6 +79,19 @@ class Disturbance:
         if self.kind == "step":
             return self.magnitude if t >= self.start_s else 0.0
         return self.magnitude if self.start_s <= t < self.start_s + self.duration_s else 0.0
+
+
+def _as_vehicle(name: str, v: Vehicle | str | os.PathLike | None) -> Vehicle | None:
+    """A :class:`Vehicle`, or a preset name / vehicle file (:func:`ptw_env.vehicle_files.load_vehicle`),
+    so that ``gymnasium.make("PTWRoll-v0", vehicle="robot-bicycle")`` works."""
+    if v is None or isinstance(v, Vehicle):
+        return v
+    if isinstance(v, (str, os.PathLike)):
+        try:
+            return load_vehicle(v)
+        except VehicleFileError as exc:
+            raise EnvConfigError(f"{name}: {exc}") from None
+    raise EnvConfigError(f"{name} must be a Vehicle, a preset name or a vehicle file, got {type(v).__name__}")
 
 
 class PTWRollEnv(gym.Env):
@@ -163,8 +178,11 @@ class PTWRollEnv(gym.Env):
         Road friction along the ride (:mod:`ptw_env.friction`): scales the
         true plant's tire stiffness and ``mu_peak`` by ``mu / mu_ref`` at
         each control period (a wet patch); ``info["friction"]`` holds ``mu``.
-    vehicle : Vehicle, optional
-        The true vehicle (default: the reference scooter).
+    vehicle : Vehicle or str, optional
+        The true vehicle (default: the reference scooter): a :class:`Vehicle`, a preset name
+        (:func:`ptw_env.vehicle_files.vehicle_names`) or a vehicle file; also through
+        ``gymnasium.make("PTWRoll-v0", vehicle="robot-bicycle", speed_kmh=14)``. The scenario's
+        speeds must lie in the vehicle's range.
     dt : float
         Control period [s] (default 0.01, the 100 Hz sensor rate).
     tau_max, normalize_action, observe_roll, init_roll_deg,
@@ -204,10 +222,10 @@ class PTWRollEnv(gym.Env):
         noise_pct: float | None = None,
         effects: Effects | Mapping | list | str | None = None,
         prior_effects: Effects | Mapping | list | str | None = None,
-        prior_vehicle: Vehicle | None = None,
+        prior_vehicle: Vehicle | str | None = None,
         disturbances: tuple[Disturbance, ...] | list[Disturbance] = (),
         friction: FrictionSchedule | None = None,
-        vehicle: Vehicle | None = None,
+        vehicle: Vehicle | str | None = None,
         dt: float = 0.01,
         tau_max: float = 60.0,
         normalize_action: bool = False,
@@ -249,11 +267,11 @@ class PTWRollEnv(gym.Env):
         else:
             raise EnvConfigError(f"scenario must be a name or a Scenario, got {type(scenario).__name__}")
 
-        self.vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
+        self.vehicle = _as_vehicle("vehicle", vehicle) or REFERENCE_SCOOTER
         self.effects = as_effects(effects)
         if self.effects.batch_shape:
             raise EnvConfigError("effects in the environment must be scalars (one vehicle)")
-        self.prior_vehicle = self.vehicle if prior_vehicle is None else prior_vehicle
+        self.prior_vehicle = _as_vehicle("prior_vehicle", prior_vehicle) or self.vehicle
         self.prior_effects = as_effects(prior_effects)
         self.disturbances = tuple(disturbances)
         for d in self.disturbances:
