@@ -15,6 +15,7 @@ from .dynamics import compile_plant
 from .effects import Effects, as_effects
 from .friction import FrictionPlants, FrictionSchedule
 from .integrate import Stepper
+from .rider import DEFAULT_TAU_MAX
 from .scenarios import Scenario, make_scenario
 from .sensors import CHANNELS, SensorConfig, SensorModel
 from .vehicle import REFERENCE_SCOOTER, Vehicle
@@ -109,7 +110,8 @@ class PTWRollEnv(gym.Env):
     Action space
     ------------
     ``Box(-tau_max, tau_max, (1,), float32)``: the rider steering torque [N m]
-    (``tau_max`` = 60 N m by default). With ``normalize_action=True`` the box
+    (``tau_max`` = 60 N m on the reference scooter by default; on another vehicle in
+    proportion to its steer torque per radian of lean, ``Vehicle.torque_ratio``). With ``normalize_action=True`` the box
     is ``[-1, 1]`` and scaled by ``tau_max``. Actions outside the box are
     clipped (the rider's strength), and ``info["action_clipped"]`` says so;
     NaN or infinite actions raise :class:`InvalidActionError`.
@@ -227,7 +229,7 @@ class PTWRollEnv(gym.Env):
         friction: FrictionSchedule | None = None,
         vehicle: Vehicle | str | None = None,
         dt: float = 0.01,
-        tau_max: float = 60.0,
+        tau_max: float | None = None,
         normalize_action: bool = False,
         observe_roll: bool = False,
         init_roll_deg: float = 0.5,
@@ -238,7 +240,8 @@ class PTWRollEnv(gym.Env):
         render_mode: str | None = None,
     ) -> None:
         super().__init__()
-        for name, v in (("dt", dt), ("tau_max", tau_max), ("reward_roll_scale_deg", reward_roll_scale_deg)):
+        for name, v in (("dt", dt), ("tau_max", 1.0 if tau_max is None else tau_max),
+                        ("reward_roll_scale_deg", reward_roll_scale_deg)):
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise EnvConfigError(f"{name} must be a positive number, got {v!r}")
         for name, v in (("init_roll_deg", init_roll_deg), ("reward_effort_weight", reward_effort_weight)):
@@ -278,7 +281,9 @@ class PTWRollEnv(gym.Env):
             if not isinstance(d, Disturbance):
                 raise EnvConfigError(f"disturbances must be Disturbance objects, got {type(d).__name__}")
         self.dt = float(dt)
-        self.tau_max = float(tau_max)
+        # the actuator range: 60 N m on the reference scooter, in proportion to the steer torque per
+        # radian of lean on another vehicle (Vehicle.torque_ratio; 3.2 N m on the robot bicycle)
+        self.tau_max = float(DEFAULT_TAU_MAX * self.vehicle.torque_ratio if tau_max is None else tau_max)
         self.normalize_action = bool(normalize_action)
         self.observe_roll = bool(observe_roll)
         self.init_roll = math.radians(init_roll_deg)

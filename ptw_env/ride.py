@@ -55,6 +55,10 @@ class RideResult:
         }
 
 
+#: Standard deviation of the rider's random torque [N m] on the reference scooter; another vehicle's
+#: rider takes it times :attr:`ptw_env.vehicle.Vehicle.torque_ratio` (0.16 N m on the robot bicycle).
+RIDER_NOISE_NM = 3.0
+
 def ride_scenario(
     scenario: str = "double_lane_change",
     speed_kmh: float | None = None,
@@ -62,7 +66,7 @@ def ride_scenario(
     noise_pct: float | None = None,
     sensors: SensorConfig | None = None,
     seed: int = 0,
-    rider_noise_nm: float = 3.0,
+    rider_noise_nm: float | None = None,
     **env_kwargs: Any,
 ) -> RideResult:
     """Ride ``scenario`` with the LQR rider and return the ride log and the truth.
@@ -77,6 +81,8 @@ def ride_scenario(
     env = PTWRollEnv(scenario=scenario, speed_kmh=speed_kmh, effects=effects, noise_pct=noise_pct,
                      sensors=sensors, **env_kwargs)
     prior = env.get_prior()
+    if rider_noise_nm is None:  # 3 N m on the reference scooter, in proportion on another vehicle
+        rider_noise_nm = RIDER_NOISE_NM * prior.vehicle.torque_ratio
     rider = LQRRider(vehicle=prior.vehicle, torque_noise_nm=rider_noise_nm, tau_max=env.tau_max, dt=env.dt)
     obs, info = env.reset(seed=seed)
     rider.reset(np.random.default_rng(np.random.SeedSequence([seed, 1])))

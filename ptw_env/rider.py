@@ -67,22 +67,29 @@ class RiderError(ValueError):
 DEFAULT_MAX_EXCURSION = np.array(
     [math.radians(1.0), math.inf, math.inf, 0.1, 0.25, 0.5, math.inf, math.inf, math.radians(0.5)]
 )
-#: Default acceptable torque [N m] (``R = 1 / tau_max^2``).
+#: Default acceptable torque [N m] of the reference scooter (``R = 1 / tau_scale^2``); another vehicle
+#: takes it times :attr:`ptw_env.vehicle.Vehicle.torque_ratio` (its steer torque per radian of lean
+#: relative to the scooter's): a 37 kg bicycle's rider with the scooter's 20 N m saturates at 60 N m
+#: and tracks a 14 km/h lane change to 1.8 deg RMS; with its own 1.06 N m, to 0.65 deg with 1.5 N m.
 DEFAULT_TAU_SCALE = 20.0
+#: Default saturation of the rider's torque [N m] on the reference scooter (times ``torque_ratio``).
+DEFAULT_TAU_MAX = 60.0
 
 
-def default_weights(integral: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def default_weights(integral: bool = True, vehicle: Vehicle | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The default ``(Q, R)``: Bryson's rule on :data:`DEFAULT_MAX_EXCURSION` and :data:`DEFAULT_TAU_SCALE`.
 
     ``Q = diag(1 / x_max^2)`` (9 x 9 with the integral, else 8 x 8),
-    ``R = [[1 / tau_scale^2]]``. With these the rider's torque stays within
-    about +-40 N m on the scenarios and the slowest closed-loop mode of the
+    ``R = [[1 / tau_scale^2]]`` with ``tau_scale = DEFAULT_TAU_SCALE * vehicle.torque_ratio``
+    (the reference scooter's by default). With these the scooter rider's torque stays below
+    its 60 N m saturation on the scenarios and the slowest closed-loop mode of the
     linear model has a damping ratio above 0.5 at every speed in [3, 40] m/s
     (``tests/test_rider.py`` checks both).
     """
+    ratio = 1.0 if vehicle is None else vehicle.torque_ratio
     q = 1.0 / DEFAULT_MAX_EXCURSION**2
     Q = np.diag(q if integral else q[:8])
-    return Q, np.array([[1.0 / DEFAULT_TAU_SCALE**2]])
+    return Q, np.array([[1.0 / (DEFAULT_TAU_SCALE * ratio) ** 2]])
 
 
 def _augmented(vehicle: Vehicle, vx: float, integral: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -96,9 +103,9 @@ def _augmented(vehicle: Vehicle, vx: float, integral: bool) -> tuple[np.ndarray,
     return Aa, np.vstack([B, [[0.0]]])
 
 
-def _weights(Q, R, integral: bool) -> tuple[np.ndarray, np.ndarray]:
+def _weights(Q, R, integral: bool, vehicle: Vehicle | None = None) -> tuple[np.ndarray, np.ndarray]:
     n = 9 if integral else 8
-    Q0, R0 = default_weights(integral)
+    Q0, R0 = default_weights(integral, vehicle)
     Q = Q0 if Q is None else np.asarray(Q, dtype=float)
     R = R0 if R is None else np.atleast_2d(np.asarray(R, dtype=float))
     if Q.ndim == 1:
@@ -164,7 +171,7 @@ def lqr_gain(vehicle: Vehicle | None = None, vx: float = 15.0, Q=None, R=None, i
     vx = float(vx)
     if not (vehicle.vmin <= vx <= vehicle.vmax):
         raise LQRDesignError(f"vx = {vx:g} m/s is outside the vehicle's range [{vehicle.vmin:g}, {vehicle.vmax:g}] m/s")
-    Q, R = _weights(Q, R, integral)
+    Q, R = _weights(Q, R, integral, vehicle)
     A, B = _augmented(vehicle, vx, integral)
     try:
         P = scipy.linalg.solve_continuous_are(A, B, Q, R)
@@ -267,7 +274,7 @@ class GainSchedule:
         if not (isinstance(step, (int, float)) and 0 < step <= self.vehicle.vmax - self.vehicle.vmin):
             raise LQRDesignError(f"step must be in (0, vmax - vmin] m/s, got {step!r}")
         self.integral = bool(integral)
-        self.Q, self.R = _weights(Q, R, self.integral)
+        self.Q, self.R = _weights(Q, R, self.integral, self.vehicle)
         span = self.vehicle.vmax - self.vehicle.vmin
         self.step = span / math.ceil(span / float(step) - 1e-9)  # uniform grid, spacing <= step
         key = _key(self.vehicle, self.Q, self.R, self.integral, self.step)
@@ -362,8 +369,9 @@ class LQRRider:
         Standard deviation of the random torque [N m] (default 0).
     noise_bandwidth_hz : float
         Corner frequency of the random torque [Hz] (default 2).
-    tau_max : float
-        Saturation of the rider's torque [N m] (default 60).
+    tau_max : float, optional
+        Saturation of the rider's torque [N m] (default :data:`DEFAULT_TAU_MAX` times the
+        vehicle's ``torque_ratio``: 60 N m on the reference scooter).
     dt : float
         Call period of :meth:`torque` [s] (default 0.01).
     """
@@ -379,13 +387,15 @@ class LQRRider:
         schedule: GainSchedule | None = None,
         torque_noise_nm: float = 0.0,
         noise_bandwidth_hz: float = 2.0,
-        tau_max: float = 60.0,
+        tau_max: float | None = None,
         dt: float = 0.01,
     ) -> None:
         if schedule is None:
             schedule = GainSchedule(vehicle)
         elif vehicle is not None and vehicle is not schedule.vehicle:
             raise RiderError("give either vehicle or schedule (a schedule carries its own vehicle), not both")
+        if tau_max is None:
+            tau_max = DEFAULT_TAU_MAX * schedule.vehicle.torque_ratio
         if not schedule.integral:
             raise RiderError("LQRRider needs a schedule with integral action (integral=True)")
         for name, val, zero_ok in (

@@ -155,6 +155,20 @@ class Vehicle:
              dict(self.provenance)),
         )
 
+    @property
+    def steer_torque_scale(self) -> float:
+        """``|a61|`` [N m/rad]: the steering torque that gravity and trail put on the steer at one
+        radian of lean (Fouka et al. Table V: ``a61 = M_f e g - eta Z_f``), the vehicle's own unit of
+        steering torque (164.3 N m/rad for the reference scooter, 8.7 for the robot bicycle)."""
+        return abs(float(self.A0[DELTA_DOT, PHI]))
+
+    @property
+    def torque_ratio(self) -> float:
+        """:attr:`steer_torque_scale` relative to the reference scooter's (exactly 1 for it): the
+        factor that carries a torque chosen on the scooter (a rider's torque range, noise, the
+        environment's actuator limit) to this vehicle."""
+        return self.steer_torque_scale / REFERENCE_SCOOTER.steer_torque_scale
+
     def identity(self) -> dict[str, str]:
         """Which vehicle this is, for reports (cli.md: "its --json says which vehicle ran").
 
