@@ -7,7 +7,9 @@ steps. The default, :data:`DEFAULT_SUBSTEP` = 2.5 ms (4 substeps at 100 Hz),
 keeps the relative error against a tight ``solve_ivp`` below 1e-5 up to
 40 m/s, where the tire modes reach |lambda| ~ 190 rad/s (``|lambda h|``
 ~ 0.47, well inside RK4's stability region); ``tests/test_integrate.py``
-checks 1e-4 over a 20 s ride.
+checks 1e-4 over a 20 s ride. For another vehicle the substep is also kept
+below ``MAX_LAMBDA_H / |lambda|_max`` (:attr:`ptw_env.vehicle.Vehicle.fastest_eigenvalue`),
+so a vehicle with stiffer modes than the scooter's gets the same accuracy.
 """
 
 from __future__ import annotations
@@ -22,16 +24,21 @@ from .vehicle import Vehicle
 
 #: Largest internal RK4 step [s].
 DEFAULT_SUBSTEP = 0.0025
+#: Largest ``|lambda h|`` of the vehicle's fastest mode per RK4 substep (the scooter's 0.47 at 40 m/s).
+MAX_LAMBDA_H = 0.47
 
 
 class SimulationInputError(ValueError):
     """Inputs to :func:`simulate` with a wrong shape, a non-finite value or a speed outside the valid range."""
 
 
-def substeps_for(dt: float, max_substep: float = DEFAULT_SUBSTEP) -> int:
-    """Number of RK4 substeps per control period ``dt`` [s] so that each is at most ``max_substep``."""
+def substeps_for(dt: float, max_substep: float = DEFAULT_SUBSTEP, vehicle: Vehicle | None = None) -> int:
+    """Number of RK4 substeps per control period ``dt`` [s] so that each is at most ``max_substep``
+    and, for ``vehicle``, at most ``MAX_LAMBDA_H / vehicle.fastest_eigenvalue``."""
     if not (dt > 0 and math.isfinite(dt)):
         raise SimulationInputError(f"dt must be a positive number of seconds, got {dt!r}")
+    if vehicle is not None:
+        max_substep = min(max_substep, MAX_LAMBDA_H / vehicle.fastest_eigenvalue)
     return max(1, math.ceil(dt / max_substep - 1e-9))
 
 
@@ -81,7 +88,8 @@ def simulate(
     vehicle : Vehicle or Plant, optional
         Defaults to the reference scooter.
     substeps : int, optional
-        RK4 substeps per period (default: ``ceil(dt / 2.5 ms)``).
+        RK4 substeps per period (default: :func:`substeps_for` the vehicle: ``ceil(dt / 2.5 ms)``
+        unless the vehicle has modes faster than the scooter's).
 
     Returns
     -------
@@ -101,7 +109,7 @@ def simulate(
     (64, 101, 8)
     """
     plant = _as_plant(vehicle, effects)
-    nsub = substeps_for(dt) if substeps is None else int(substeps)
+    nsub = substeps_for(dt, vehicle=plant.vehicle) if substeps is None else int(substeps)
     if nsub < 1:
         raise SimulationInputError(f"substeps must be >= 1, got {substeps!r}")
     x0, tau, vx = (_float_array(a, n) for a, n in ((x0, "x0"), (tau, "tau"), (vx, "vx")))
@@ -159,7 +167,7 @@ class Stepper:
             raise SimulationInputError("Stepper takes an unbatched plant")
         self.plant = plant
         self.dt = float(dt)
-        self.nsub = substeps_for(dt) if substeps is None else int(substeps)
+        self.nsub = substeps_for(dt, vehicle=plant.vehicle) if substeps is None else int(substeps)
         W, s, f, b = plant.flat()
         self._W, self._inv_sigma, self._fmax, self._bank = W[0], s[0], f[0], float(b[0])
 
