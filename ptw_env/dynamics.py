@@ -20,13 +20,16 @@ the printed rows 7-8 (``F_lin,k = (sigma_0/vx) sum_{j != k} a_kj x_j``).
 :func:`compile_plant` folds a :class:`~ptw_env.vehicle.Vehicle` and an
 :class:`~ptw_env.effects.Effects` into one matrix ``W`` so that the
 mechanical rows are a single matrix product with the feature vector
-``z = [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, d]`` (``d``: an
-external roll moment [N m], the environment's disturbance input); effect
-parameters given as arrays give one ``W`` per vehicle of the batch.
+``z = [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, d, vx^2,
+tanh(delta_dot/w)]`` (``d``: an external roll moment [N m], the environment's
+disturbance input; the last two are zero in the model and carry the
+generalised forces of a model extension, :func:`add_generalised_forces`);
+effect parameters given as arrays give one ``W`` per vehicle of the batch.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,8 +39,19 @@ from .effects import PAYLOAD_HEIGHT, Effects, as_effects
 from .vehicle import DELTA_DOT, FYF, FYR, G, REFERENCE_SCOOTER, Vehicle
 
 #: number of features in z
-NZ = 29
-_ZX, _ZVX, _ZIV, _ZS1, _ZS2, _ZTAU, _ZONE, _ZDIST = 0, 8, 16, 24, 25, 26, 27, 28
+NZ = 31
+_ZX, _ZVX, _ZIV, _ZS1, _ZS2, _ZTAU, _ZONE, _ZDIST, _ZV2, _ZCOUL = 0, 8, 16, 24, 25, 26, 27, 28, 29, 30
+#: Features a generalised force of a model extension may be proportional to
+#: (:func:`add_generalised_forces`): name -> column of ``z``. ``w`` is
+#: :data:`ptw_env.kernels.COULOMB_WIDTH`.
+FORCE_FEATURES: dict[str, int] = {
+    "1": _ZONE,
+    "vx^2": _ZV2,
+    "vx*vy": _ZVX + 2,
+    "vx*delta": _ZVX + 1,
+    "delta_dot": _ZX + DELTA_DOT,
+    "tanh(delta_dot/w)": _ZCOUL,
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,6 +71,9 @@ class Plant:
         Road bank angle beta [rad].
     mass : ndarray, shape (*batch,)
         Total mass M + m [kg] (for ``ay``).
+    Einv : ndarray, shape (*batch, 8, 8)
+        ``E^-1`` of the plant (payload included): how a generalised force in a row of model.md
+        moves the state derivative (:func:`add_generalised_forces`).
     """
 
     vehicle: Vehicle
@@ -66,6 +83,7 @@ class Plant:
     fmax: np.ndarray
     bank: np.ndarray
     mass: np.ndarray
+    Einv: np.ndarray
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
@@ -216,7 +234,34 @@ def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
         fmax=np.array(fmax),
         bank=np.array(bank),
         mass=np.array(total_mass),
+        Einv=Einv,
     )
+
+
+#: Rows of model.md (1-based) that take a generalised force: lateral (3), yaw (4), roll (5), steer (6).
+FORCE_ROWS = {"lateral": 3, "yaw": 4, "roll": 5, "steer": 6}
+
+
+def add_generalised_forces(plant: Plant, forces: list[tuple[str, str, np.ndarray | float]]) -> Plant:
+    """The plant with extra generalised forces: ``E x' = ... + sum_k c_k phi_k(x, vx) e_row(k)``.
+
+    Each force is ``(equation, feature, coefficient)``: ``equation`` one of :data:`FORCE_ROWS`
+    (``steer`` adds a torque about the steering axis [N m], ``roll`` a roll moment [N m], ``yaw`` a
+    yaw moment [N m], ``lateral`` a lateral force [N]), ``feature`` one of :data:`FORCE_FEATURES`,
+    the coefficient a number or an array (one plant per element; a batch). This is how a model
+    extension of the diagnosis (closure terms, ``assist.diagnose``) enters the one right-hand side:
+    the force goes through the plant's own ``E^-1`` like every other term, and the tire rows are
+    untouched.
+    """
+    extra = [(FORCE_ROWS[eq], FORCE_FEATURES[feat], np.asarray(c, dtype=float)) for eq, feat, c in forces]
+    shapes = [plant.batch_shape] + [c.shape for _, _, c in extra]
+    bshape = np.broadcast_shapes(*shapes)
+    W = np.array(np.broadcast_to(plant.W, bshape + (8, NZ)))
+    Einv = np.broadcast_to(plant.Einv, bshape + (8, 8))
+    for row, col, c in extra:
+        W[..., 0:6, col] += Einv[..., 0:6, row - 1] * np.broadcast_to(c, bshape)[..., None]
+    W.setflags(write=False)
+    return dataclasses.replace(plant, W=W, Einv=np.array(Einv))
 
 
 def rhs(x: np.ndarray, tau, vx, vehicle: Vehicle | None = None, effects=None) -> np.ndarray:
@@ -247,4 +292,4 @@ def linearise(plant: Plant | Vehicle | None, vx: float, x: np.ndarray | None = N
     return A, Bm
 
 
-__all__ = ["Plant", "compile_plant", "rhs", "linearise"]
+__all__ = ["Plant", "compile_plant", "rhs", "linearise", "add_generalised_forces", "FORCE_FEATURES", "FORCE_ROWS"]

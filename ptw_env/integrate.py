@@ -32,14 +32,24 @@ class SimulationInputError(ValueError):
     """Inputs to :func:`simulate` with a wrong shape, a non-finite value or a speed outside the valid range."""
 
 
-def substeps_for(dt: float, max_substep: float = DEFAULT_SUBSTEP, vehicle: Vehicle | None = None) -> int:
+def substeps_for(dt: float, max_substep: float = DEFAULT_SUBSTEP, vehicle: Vehicle | None = None,
+                 extra_rate: float = 0.0) -> int:
     """Number of RK4 substeps per control period ``dt`` [s] so that each is at most ``max_substep``
-    and, for ``vehicle``, at most ``MAX_LAMBDA_H / vehicle.fastest_eigenvalue``."""
+    and, for ``vehicle``, at most ``MAX_LAMBDA_H / max(vehicle.fastest_eigenvalue, extra_rate)``
+    (``extra_rate`` [1/s]: a faster mode a model extension adds, :func:`plant_rate`)."""
     if not (dt > 0 and math.isfinite(dt)):
         raise SimulationInputError(f"dt must be a positive number of seconds, got {dt!r}")
     if vehicle is not None:
-        max_substep = min(max_substep, MAX_LAMBDA_H / vehicle.fastest_eigenvalue)
+        max_substep = min(max_substep, MAX_LAMBDA_H / max(vehicle.fastest_eigenvalue, float(extra_rate)))
     return max(1, math.ceil(dt / max_substep - 1e-9))
+
+
+def plant_rate(plant: Plant) -> float:
+    """Fastest rate [1/s] a plant's generalised forces add beyond its vehicle's modes: Coulomb
+    steering friction ``Tc tanh(delta_dot / w)`` acts like a steering damping ``Tc / w`` near
+    ``delta_dot = 0``, i.e. a steer mode of rate ``|d delta_dot' / d delta_dot| = |W[5, coulomb]| / w``."""
+    col = plant.W[..., 5, -1]
+    return float(np.max(np.abs(col))) / kernels.COULOMB_WIDTH if col.size else 0.0
 
 
 def _as_plant(vehicle: Vehicle | Plant | None, effects) -> Plant:
@@ -109,7 +119,10 @@ def simulate(
     (64, 101, 8)
     """
     plant = _as_plant(vehicle, effects)
-    nsub = substeps_for(dt, vehicle=plant.vehicle) if substeps is None else int(substeps)
+    if substeps is None:
+        nsub = substeps_for(dt, vehicle=plant.vehicle, extra_rate=plant_rate(plant))
+    else:
+        nsub = int(substeps)
     if nsub < 1:
         raise SimulationInputError(f"substeps must be >= 1, got {substeps!r}")
     x0, tau, vx = (_float_array(a, n) for a, n in ((x0, "x0"), (tau, "tau"), (vx, "vx")))
@@ -167,7 +180,8 @@ class Stepper:
             raise SimulationInputError("Stepper takes an unbatched plant")
         self.plant = plant
         self.dt = float(dt)
-        self.nsub = substeps_for(dt, vehicle=plant.vehicle) if substeps is None else int(substeps)
+        self.nsub = (substeps_for(dt, vehicle=plant.vehicle, extra_rate=plant_rate(plant)) if substeps is None
+                     else int(substeps))
         W, s, f, b = plant.flat()
         self._W, self._inv_sigma, self._fmax, self._bank = W[0], s[0], f[0], float(b[0])
 

@@ -7,8 +7,13 @@ matrices it reads are built by :func:`ptw_env.dynamics.compile_plant` from
 the one vehicle definition; see there for the equations.
 
 Layout of a compiled plant row ``W[i]`` (i = 0..5: ``x'_i``; i = 6, 7:
-``F_lin`` front/rear): ``W[i] . [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, d]`` where ``d`` is an
-external roll moment [N m] (a disturbance input, 0 unless the environment injects one).
+``F_lin`` front/rear): ``W[i] . [x, vx x, x/vx, sin(phi-beta), sin(delta), tau, 1, d, vx^2,
+tanh(delta_dot / COULOMB_WIDTH)]`` where ``d`` is an external roll moment [N m] (a disturbance
+input, 0 unless the environment injects one). The last two features are zero in the vehicle
+model of model.md; they carry generalised forces a model extension adds
+(:func:`ptw_env.dynamics.add_generalised_forces`: aerodynamic terms in ``vx^2``, Coulomb steering
+friction). The ``vx^2`` column is folded with the held speed; the Coulomb column, the only one
+evaluated at every RK4 stage besides the sines, is skipped for plants that do not use it.
 
 Over one control period ``vx`` and ``tau`` are held (zero-order hold, as in
 the reference ride logs), so each period first folds them into an 8 x 8
@@ -22,6 +27,10 @@ import numpy as np
 from numba import njit, prange
 
 
+#: Width [rad/s] of the smooth sign ``tanh(delta_dot / w)`` of Coulomb steering friction.
+COULOMB_WIDTH = 0.02
+
+
 @njit(cache=True, inline="always")
 def _fold(W, vx, tau, d, M, c, g):
     for i in range(8):
@@ -29,7 +38,22 @@ def _fold(W, vx, tau, d, M, c, g):
             M[i, j] = W[i, j] + vx * W[i, 8 + j] + W[i, 16 + j] / vx
         g[i, 0] = W[i, 24]
         g[i, 1] = W[i, 25]
-        c[i] = W[i, 26] * tau + W[i, 27] + W[i, 28] * d
+        c[i] = W[i, 26] * tau + W[i, 27] + W[i, 28] * d + W[i, 29] * vx * vx
+
+
+@njit(cache=True, inline="always")
+def _has_coulomb(W):
+    for i in range(6):
+        if W[i, 30] != 0.0:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _add_coulomb(x, W, out):
+    s = np.tanh(x[5] / COULOMB_WIDTH)
+    for i in range(6):
+        out[i] += W[i, 30] * s
 
 
 @njit(cache=True, inline="always")
@@ -63,6 +87,7 @@ def rhs_into(x, tau, vx, W, inv_sigma, fmax, bank, out):
         k = n if K > 1 else n - n
         _fold(W[k], vx[n], tau[n], 0.0, M, c, g)
         _deriv(x[n], M, c, g, vx[n], inv_sigma[k], fmax[k], bank[k], out[n])
+        _add_coulomb(x[n], W[k], out[n])
 
 
 @njit(cache=True, inline="always")
@@ -82,6 +107,28 @@ def _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, 
             x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
+@njit(cache=True, inline="always")
+def _rk4_period_c(x, M, c, g, W, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, tmp):
+    """:func:`_rk4_period` with the Coulomb column of ``W`` evaluated at every stage."""
+    for _ in range(nsub):
+        _deriv(x, M, c, g, vx, inv_sigma, fmax, bank, k1)
+        _add_coulomb(x, W, k1)
+        for i in range(8):
+            tmp[i] = x[i] + 0.5 * h * k1[i]
+        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k2)
+        _add_coulomb(tmp, W, k2)
+        for i in range(8):
+            tmp[i] = x[i] + 0.5 * h * k2[i]
+        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k3)
+        _add_coulomb(tmp, W, k3)
+        for i in range(8):
+            tmp[i] = x[i] + h * k3[i]
+        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k4)
+        _add_coulomb(tmp, W, k4)
+        for i in range(8):
+            x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+
+
 @njit(cache=True)
 def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
     """Advance one vehicle (``x`` shape (8,), modified in place) by one control
@@ -96,7 +143,10 @@ def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
     k4 = np.empty(8)
     tmp = np.empty(8)
     _fold(W, vx, tau, d, M, c, g)
-    _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
+    if _has_coulomb(W):
+        _rk4_period_c(x, M, c, g, W, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
+    else:
+        _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
     for i in range(8):
         if not np.isfinite(x[i]):
             return False
@@ -122,7 +172,13 @@ def simulate_batch(x0, tau, vx, W, inv_sigma, fmax, bank, dt, nsub, out):
         tmp = np.empty(8)
         x = x0[n].copy()
         out[n, 0] = x
+        coul = _has_coulomb(W[k])
         for t in range(T):
             _fold(W[k], vx[n, t], tau[n, t], 0.0, M, c, g)
-            _rk4_period(x, M, c, g, vx[n, t], inv_sigma[k], fmax[k], bank[k], dt / nsub, nsub, k1, k2, k3, k4, tmp)
+            if coul:
+                _rk4_period_c(x, M, c, g, W[k], vx[n, t], inv_sigma[k], fmax[k], bank[k], dt / nsub, nsub,
+                              k1, k2, k3, k4, tmp)
+            else:
+                _rk4_period(x, M, c, g, vx[n, t], inv_sigma[k], fmax[k], bank[k], dt / nsub, nsub,
+                            k1, k2, k3, k4, tmp)
             out[n, t + 1] = x
