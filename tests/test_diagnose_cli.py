@@ -51,7 +51,7 @@ def test_cli_missing_file_and_short_log(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
     p = tmp_path / "short.csv"
     write_log(p, ride("double_lane_change", None, seed=1, duration_s=20.0).columns | {}, meta={})
-    lines = p.read_text().splitlines()[:800]
+    lines = p.read_text().splitlines()[:300]  # 3 s: fewer than 8 windows of 0.5 s
     p.write_text("\n".join(lines) + "\n")
     assert main(["diagnose", str(p), "--no-progress"]) == 2
     err = capsys.readouterr().err
