@@ -19,7 +19,7 @@ from assist.diagnose import selection
 from assist.diagnose.data import auto_window, make_windows, reconstruct_speed
 from assist.diagnose.measurement import sensor_outputs
 from assist.diagnose.noise import noise_levels, white_noise_std
-from assist.diagnose.params import CAUSES, NOMINAL, PARAMS
+from assist.diagnose.params import CAUSES, CLOSURES, N_TABLE, NOMINAL, PARAMS
 from assist.diagnose.replay import NX, Replay
 from conftest import DATA
 from ptw_env.effects import VOCABULARY, Effects
@@ -88,13 +88,15 @@ def test_fitted_parameters_are_exactly_the_vocabulary():
     assert set(CAUSES) == set(VOCABULARY)
     for cause, params in VOCABULARY.items():
         assert [PARAMS[i].name for i in CAUSES[cause]] == list(params)
-    for p in PARAMS:
+    table = PARAMS[:N_TABLE]  # the closure coefficients of the model extension follow them
+    assert all(p.cause in CLOSURES for p in PARAMS[N_TABLE:]) and not set(CLOSURES) & set(VOCABULARY)
+    for p in table:
         _, _, lo, hi = VOCABULARY[p.cause][p.name]
         for z in (p.lo, p.hi, p.nominal):
             v = p.value(z)
             assert lo <= v <= hi or (p.inverse and v == math.inf), (p, z, v)
     # every point of the search box is a valid Effects value
-    e = Effects({p.cause: {p.name: p.value(p.hi)} for p in PARAMS})
+    e = Effects({p.cause: {p.name: p.value(p.hi)} for p in table})
     assert e.value("tire_saturation", "mu_peak") == pytest.approx(0.25)
 
 

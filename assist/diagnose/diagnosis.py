@@ -36,6 +36,7 @@ from .data import DiagnoseInputError, auto_window, make_windows
 from .hypotheses import (MAX_NFEV, PAIR_MIN, PAIR_PARTNERS, PAIR_PARTNERS_SCORE, PAIR_TOP, HypothesisFitter,
                          all_hypotheses)
 from .noise import noise_levels
+from .extension import best_extension
 from .replay import Replay
 from .report import DiagnosisReport, sig
 from .where import breakdown
@@ -79,6 +80,7 @@ def diagnose(
     encoder_quantum: float | None | str = "auto",
     max_nfev: int = MAX_NFEV,
     progress: bool | None = None,
+    extend_model: bool = True,
 ) -> DiagnosisReport:
     """Diagnose a ride log against the nominal model (``shared/spec/diagnose.md``).
 
@@ -123,6 +125,9 @@ def diagnose(
         Function evaluations per hypothesis fit (scipy ``least_squares``).
     progress : bool or None
         Progress bar while hypotheses are fitted (``None``: when stderr is a terminal).
+    extend_model : bool
+        When no cause of effects.md explains the log, extend the model with closure terms
+        (:mod:`assist.diagnose.extension`; diagnose.md ``verdict.extension``). Default True.
 
     Returns
     -------
@@ -220,6 +225,22 @@ def diagnose(
             rv = refined(names.index(verdict.name))[0][1]
             ratio = ratio_to_noise(rv)
     hv = names.index(verdict.name)
+
+    # 5. no cause of effects.md explains the log: extend the model (closure terms, extension.py)
+    ext, extended = None, False
+    if extend_model and not explained:
+        def explains(z: np.ndarray) -> bool:
+            rz = replay.fit_states(z[None], all_w, x0=replay.fit_states(z[None], all_w, steps=SCORE_STATE_STEPS)[1],
+                                   steps=SCORE_STATE_STEPS)[0][0]
+            return bool(np.all(ratio_to_noise(rz) <= 1.0 + selection.EXPLAINED_TOL))
+
+        bases = [([], 0, replay.params.nominal.copy())]
+        if verdict.name != "none":
+            f = fits[verdict.name]
+            bases.append((replay.params.to_causes(f.hypothesis.causes, f.z), f.hypothesis.k, f.z))
+        ext = best_extension(fitter, bases, test_w, counts, chans, float(S[0].sum()), explains,
+                             score_steps=SCORE_STATE_STEPS)
+        extended = ext is not None and explains(ext.z)
     roll = win.Y[..., chans.index("roll")] if "roll" in chans else _replayed_roll(replay, xa[0], all_w)
     nominal_where = breakdown(win, ra[0] * replay.sigma, sig_v, roll)
     residual = breakdown(win, rv * replay.sigma, sig_v, roll)
@@ -254,7 +275,8 @@ def diagnose(
         "notes": notes,
     }
     Yn = replay.outputs(Z[0][None], test_w, _states(replay, Z[0], test_w))[0]
-    Ye = replay.outputs(Z[hv][None], test_w, _states(replay, Z[hv], test_w))[0]
+    z_shown = ext.z if ext is not None else Z[hv]  # the figure shows the extended model when there is one
+    Ye = replay.outputs(z_shown[None], test_w, _states(replay, z_shown, test_w))[0]
     plot_data = {"t": win.t0[test_w][:, None] + np.arange(win.n) * win.dt, "Y": win.Y[test_w], "Ynom": Yn,
                  "Yext": Ye, "score": win.score[test_w]}
     return DiagnosisReport(
@@ -275,6 +297,8 @@ def diagnose(
         sim_seconds=replay.sim_seconds,
         sim_steps=replay.sim_steps,
         plot_data=plot_data,
+        extension=None if ext is None else ext.to_json(),
+        extended=extended,
     )
 
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from .params import CAUSES, GRIDS, PARAMS
+from .params import CAUSES, GRIDS, N_TABLE, PARAMS, cause_indices
 from .replay import STATE_STEPS, Replay
 
 #: Relative forward-difference step of the Jacobian (fraction of each parameter's scale).
@@ -84,7 +84,7 @@ class Hypothesis:
     @property
     def idx(self) -> tuple[int, ...]:
         """Indices of the free parameters in :data:`assist.diagnose.params.PARAMS`."""
-        return tuple(i for c in self.causes for i in CAUSES[c])
+        return tuple(i for c in self.causes for i in cause_indices(c))
 
     @property
     def k(self) -> int:
@@ -171,7 +171,7 @@ class HypothesisFitter:
             out[c] = (np.array(Z[j]), float(cost[j]))
         return out
 
-    def refine(self, hyp: Hypothesis, z_start: np.ndarray) -> Fit:
+    def refine(self, hyp: Hypothesis, z_start: np.ndarray, base: np.ndarray | None = None) -> Fit:
         """:func:`scipy.optimize.least_squares` on ``hyp``'s parameters from ``z_start``.
 
         Each evaluated model gets its own initial-state sensitivity (:meth:`Replay.linearise`)
@@ -180,6 +180,9 @@ class HypothesisFitter:
         every perturbed model re-fits the initial states by one Gauss-Newton step from the
         unperturbed optimum, and so does the unperturbed model itself (the difference then
         holds only the parameter's effect, not the last step's), all in one batched simulation.
+        ``base``: the values of the parameters outside ``hyp`` (default nominal; a model extension
+        is refined on top of the table verdict). The result keeps the weighted-residual Jacobian
+        (``extra["jac"]``) for the parameters' uncertainty.
         """
         idx = list(hyp.idx)
         k = len(idx)
@@ -187,8 +190,10 @@ class HypothesisFitter:
         rp, widx = self.replay, self.widx
         cache: dict[bytes, tuple[np.ndarray, np.ndarray, tuple]] = {}
 
+        z_base = self.params.nominal if base is None else np.asarray(base, dtype=float)
+
         def full(P: np.ndarray) -> np.ndarray:
-            Z = np.repeat(self.params.nominal[None], len(P), axis=0)
+            Z = np.repeat(z_base[None], len(P), axis=0)
             Z[:, idx] = P
             return Z
 
@@ -226,7 +231,7 @@ class HypothesisFitter:
         res = least_squares(fun, p0, jac=jac, bounds=(lo, hi), x_scale=sc, method="trf",
                             max_nfev=self.max_nfev, xtol=XTOL, ftol=FTOL, gtol=1e-8)
         z = full(res.x[None])[0]
-        return Fit(hyp, z, float(2.0 * res.cost), int(res.nfev), str(res.message))
+        return Fit(hyp, z, float(2.0 * res.cost), int(res.nfev), str(res.message), extra={"jac": res.jac})
 
     def added_value(self, fit: Fit) -> dict[str, float]:
         """Score test: how much each other cause would add to ``fit`` (noise variances per value).
@@ -240,7 +245,7 @@ class HypothesisFitter:
         rp, widx = self.replay, self.widx
         z = fit.z
         own = set(fit.hypothesis.idx)
-        others = [i for i in range(len(self.params.params)) if i not in own]
+        others = [i for i in range(N_TABLE) if i not in own]  # the table's causes (closures: extension.py)
         scale, upper = self.params.scale, self.params.upper
         x = rp.x_guess[widx][None]
         r0, P = rp.linearise(z[None], widx, x)

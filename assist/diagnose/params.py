@@ -139,6 +139,68 @@ _UNIT_GRIDS: dict[str, tuple[tuple[float, ...], ...]] = {
 
 
 @dataclass(frozen=True)
+class ClosureTerm:
+    """One term of the model-extension library (diagnose.md ``verdict.extension``), outside effects.md.
+
+    A dynamic term is a generalised force ``c * feature`` added to one equation of model.md
+    (:func:`ptw_env.dynamics.add_generalised_forces`); a sensor term changes one measured channel
+    (``offset``: ``y + c``; ``scale``: ``y (1 + c)``).
+    """
+
+    name: str
+    equation: str  #: "steer" | "roll" | "yaw" | "lateral" | "sensor:<channel>"
+    feature: str  #: a key of ptw_env.dynamics.FORCE_FEATURES, or "offset" / "scale" for a sensor
+    term: str  #: the formula, in the state names of model.md
+    unit: str  #: unit of the coefficient c
+
+
+#: The library of closure terms (issue: extend the model beyond the table of effects). Steering:
+#: viscous and Coulomb friction, a torque offset, a speed-dependent self-aligning term; roll: a
+#: moment offset (rider lean, luggage) and a speed-squared aerodynamic moment; yaw and lateral:
+#: aerodynamic moment and force in vx^2 and vx*vy; sensors: offsets and scale factors (delays are
+#: effects.md's ``sensor_delay``).
+CLOSURE_LIBRARY: tuple[ClosureTerm, ...] = (
+    ClosureTerm("steer_viscous", "steer", "delta_dot", "c * delta_dot", "N m s/rad"),
+    ClosureTerm("steer_coulomb", "steer", "tanh(delta_dot/w)", "c * tanh(delta_dot / 0.02)", "N m"),
+    ClosureTerm("steer_offset", "steer", "1", "c", "N m"),
+    ClosureTerm("steer_self_aligning", "steer", "vx*delta", "c * vx * delta", "N m s/(m rad)"),
+    ClosureTerm("roll_offset", "roll", "1", "c", "N m"),
+    ClosureTerm("roll_aero", "roll", "vx^2", "c * vx^2", "N m s^2/m^2"),
+    ClosureTerm("yaw_aero", "yaw", "vx^2", "c * vx^2", "N m s^2/m^2"),
+    ClosureTerm("yaw_vx_vy", "yaw", "vx*vy", "c * vx * vy", "N s^2/m"),
+    ClosureTerm("lateral_aero", "lateral", "vx^2", "c * vx^2", "N s^2/m^2"),
+    ClosureTerm("lateral_vx_vy", "lateral", "vx*vy", "c * vx * vy", "N s^2/m^2"),
+    ClosureTerm("delta_offset", "sensor:delta", "offset", "delta + c", "rad"),
+    ClosureTerm("ay_offset", "sensor:ay", "offset", "ay + c", "m/s^2"),
+    ClosureTerm("yaw_rate_scale", "sensor:yaw_rate", "scale", "yaw_rate * (1 + c)", "-"),
+    ClosureTerm("ay_scale", "sensor:ay", "scale", "ay * (1 + c)", "-"),
+)
+CLOSURES: dict[str, ClosureTerm] = {t.name: t for t in CLOSURE_LIBRARY}
+
+
+def _closure_specs(vehicle: Vehicle, s: "VehicleScales") -> tuple[ParamSpec, ...]:
+    """Search ranges of the closure coefficients in the vehicle's units (module docstring): steering
+    torques up to 0.1 |a61| x 1 rad, roll and yaw moments up to 0.24 a51 x 1 rad (the roll-moment
+    offset's range, also at the top speed for the speed-dependent ones), lateral forces up to
+    0.1 M g at the top speed."""
+    tq = abs(float(vehicle.A0[DELTA_DOT, PHI]))  # |a61| [N m/rad]
+    K, Mg, v, c = s.roll_stiffness, s.mass * 9.81, float(vehicle.vmax), s.steer_critical
+    a62 = abs(float(vehicle.A0[DELTA_DOT, DELTA]))
+    hi = {
+        "steer_viscous": 6.1 * c, "steer_coulomb": 0.1 * tq, "steer_offset": 0.1 * tq,
+        "steer_self_aligning": a62 / v, "roll_offset": 0.24 * K, "roll_aero": 0.24 * K / v**2,
+        "yaw_aero": 0.24 * K / v**2, "yaw_vx_vy": 0.24 * K / v, "lateral_aero": 0.1 * Mg / v**2,
+        "lateral_vx_vy": 0.1 * Mg / v, "delta_offset": 0.05, "ay_offset": 1.0,
+        "yaw_rate_scale": 0.3, "ay_scale": 0.3,
+    }
+    out = []
+    for t in CLOSURE_LIBRARY:
+        h = hi[t.name]
+        out.append(ParamSpec(t.name, "c", 0.0, -h, h, h / 20.0, _digits(h / 200.0)))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
 class ParamSet:
     """The fitted parameters of one vehicle (:func:`param_set`): specs, bounds, scales and grids."""
 
@@ -191,7 +253,7 @@ def param_set(vehicle: Vehicle) -> ParamSet:
     unit = {"roll_moment_offset": K, "payload": M, "steer_damping": c, "relaxation_length": sg}
     grids = {cause: tuple(tuple(float(unit.get(cause, 1.0) * g) for g in axis) for axis in axes)
              for cause, axes in _UNIT_GRIDS.items()}
-    return ParamSet(s, params, grids)
+    return ParamSet(s, params + _closure_specs(vehicle, s), grids)
 
 
 #: The reference scooter's parameter set (the defaults of the module-level names below).
@@ -204,6 +266,15 @@ CAUSES: dict[str, tuple[int, ...]] = {
     c: tuple(i for i, p in enumerate(PARAMS) if p.cause == c) for c in VOCABULARY
 }
 assert set(CAUSES) == set(DYNAMIC_CAUSES) | set(SENSOR_CAUSES)
+#: Index of each closure term's coefficient in the flat parameter vector (after the table's).
+CLOSURE_INDEX: dict[str, int] = {p.cause: i for i, p in enumerate(PARAMS) if p.cause in CLOSURES}
+#: Number of parameters of the table causes (the closure coefficients follow them).
+N_TABLE = min(CLOSURE_INDEX.values())
+
+
+def cause_indices(cause: str) -> tuple[int, ...]:
+    """Indices of a table cause's parameters, or of a closure term's coefficient."""
+    return CAUSES[cause] if cause in CAUSES else (CLOSURE_INDEX[cause],)
 #: Internal coordinates of the reference scooter's nominal model, and its search bounds and scales.
 NOMINAL = REFERENCE.nominal
 LOWER = REFERENCE.lower
@@ -219,4 +290,5 @@ def to_causes(causes: tuple[str, ...], z: np.ndarray) -> list[dict]:
 
 
 __all__ = ["ParamSpec", "ParamSet", "VehicleScales", "param_set", "REFERENCE", "PARAMS", "CAUSES", "NOMINAL",
-           "LOWER", "UPPER", "SCALE", "GRIDS", "to_causes"]
+           "LOWER", "UPPER", "SCALE", "GRIDS", "to_causes", "ClosureTerm", "CLOSURE_LIBRARY", "CLOSURES",
+           "CLOSURE_INDEX", "N_TABLE", "cause_indices"]

@@ -88,12 +88,13 @@ import time
 import numpy as np
 
 from ptw_env.effects import DYNAMIC_CAUSES, Effects
-from ptw_env.integrate import simulate
+from ptw_env.dynamics import Plant, add_generalised_forces, compile_plant
+from ptw_env.integrate import plant_rate, simulate
 from ptw_env.vehicle import FYF, FYR, G, REFERENCE_SCOOTER, Vehicle
 
 from .data import Windows
 from .measurement import sensor_outputs
-from .params import CAUSES, param_set
+from .params import CAUSES, CLOSURES, ClosureTerm, param_set
 
 #: Gauss-Newton steps on the initial states per evaluation of a hypothesis.
 STATE_STEPS = 2
@@ -219,12 +220,20 @@ class Replay:
         rows = np.repeat(Z, Ws, axis=0)  # (N, P): parameter row of each simulated vehicle
         dyn: dict[str, dict[str, np.ndarray]] = {}
         sens: dict[str, np.ndarray] = {}
+        forces: list[tuple[str, str, np.ndarray]] = []  # closure terms: generalised forces
+        chan_terms: list[tuple[ClosureTerm, np.ndarray]] = []  # closure terms: sensor offsets, scales
         for i, p in enumerate(self.params.params):
             col = rows[:, i]
             if np.all(col == p.nominal):
                 continue
             if p.cause in DYNAMIC_CAUSES:
                 dyn.setdefault(p.cause, {})[p.name] = np.asarray(p.value(col), dtype=float)
+            elif p.cause in CLOSURES:
+                term = CLOSURES[p.cause]
+                if term.equation.startswith("sensor:"):
+                    chan_terms.append((term, col))
+                else:
+                    forces.append((term.equation, term.feature, col))
             else:
                 sens[_SENSOR_ARGS[(p.cause, p.name)]] = col
         w = self.win
@@ -237,13 +246,26 @@ class Replay:
         sigma = float(np.min(dyn["relaxation_length"]["sigma_m"])) if "relaxation_length" in dyn else self._sigma0
         damping = float(np.max(dyn["steer_damping"]["damping_nms"])) if "steer_damping" in dyn else 0.0
         nsub = self.substeps(w.dt, float(np.max(vx)), sigma, damping)
+        model: Vehicle | Plant = self.vehicle
+        if forces:  # a model extension: its generalised forces in the one right-hand side
+            model = add_generalised_forces(compile_plant(self.vehicle, eff), forces)
+            eff = None
+            nsub = max(nsub, int(math.ceil(w.dt * plant_rate(model) / EIG_STEP - 1e-9)))
         t = time.perf_counter()
-        X = simulate(np.ascontiguousarray(x0[:, :8]), tau, vx, dt=w.dt, effects=eff, vehicle=self.vehicle,
+        X = simulate(np.ascontiguousarray(x0[:, :8]), tau, vx, dt=w.dt, effects=eff, vehicle=model,
                      substeps=nsub)
         self.sim_seconds += time.perf_counter() - t
         self.sim_steps += N * (w.n - 1)
         mass = self.vehicle.mass + (rows[:, CAUSES["payload"][0]] if "payload" in dyn else 0.0)
         Y = sensor_outputs(X, mass, w.dt, channels=w.channels, **sens)
+        for term, col in chan_terms:
+            ch = term.equation.split(":", 1)[1]
+            if ch in w.channels:
+                j = w.channels.index(ch)
+                if term.feature == "offset":
+                    Y[..., j] += col[:, None]
+                else:
+                    Y[..., j] *= 1.0 + col[:, None]
         if not np.all(np.abs(Y) < _DIVERGED):  # a candidate that diverges: a huge but finite misfit
             Y = np.clip(np.nan_to_num(Y, nan=_DIVERGED, posinf=_DIVERGED, neginf=-_DIVERGED), -_DIVERGED, _DIVERGED)
         return Y.reshape(m, Ws, w.n, len(w.channels))

@@ -85,6 +85,8 @@ class DiagnosisReport:
     sim_seconds: float = math.nan
     sim_steps: int = 0
     plot_data: dict[str, Any] = field(default_factory=dict, repr=False)
+    extension: dict | None = None  #: diagnose.md verdict.extension (closure terms and their gain), or None
+    extended: bool = False  #: the extended model explains the log to within the noise
 
     # -- the extended model ----------------------------------------------------------
     @property
@@ -111,6 +113,9 @@ class DiagnosisReport:
         }
         if not self.explained and self.residual is not None:
             verdict["residual"] = self.residual
+        if self.extension is not None:
+            verdict["extension"] = self.extension
+        verdict["extended"] = bool(self.extended)
         return {
             "log": self.log,
             "vehicle": self.vehicle.identity(),
@@ -137,6 +142,12 @@ class DiagnosisReport:
         ]
         if not self.explained and self.residual is not None:
             lines.append("unexplained residual: " + self.residual.get("summary", ""))
+        if self.extension is not None:
+            terms = "; ".join(f"{t['equation']}: {t['term']} with c = {t['coefficient']:g}"
+                              + (f" +- {t['std']:g}" if t["std"] is not None else "") + f" {t['unit']}"
+                              for t in self.extension["terms"])
+            lines.append(f"model extended beyond effects.md ({'explains' if self.extended else 'does not explain'} "
+                         f"the log to within the noise; held-out gain {self.extension['gain']:.3f}): {terms}")
         top = [h for h in self.hypotheses[:4]]
         lines.append("best hypotheses: " + "; ".join(
             f"{'+'.join(c['cause'] for c in h['causes'])} gain {h['gain']:.3f} score {h['score']:.3g}" for h in top))

@@ -1,0 +1,206 @@
+r"""Extend the model beyond the table of effects (diagnose.md ``verdict.extension``).
+
+When no cause of effects.md (alone or in a pair) explains a log, the diagnosis still extends the
+model: it searches the library of closure terms :data:`assist.diagnose.params.CLOSURE_LIBRARY`
+(generalised forces added to one equation of model.md, or a sensor offset or scale) for the
+sparsest set that explains the residual, from the nominal model and from the table verdict
+(:func:`best_extension` keeps the better: the verdict of a log with an effect outside the table is
+often a table cause standing in for it).
+
+Method: **forward selection on held-out output error**, one term at a time (at most
+:data:`MAX_TERMS`):
+
+1. every term not yet chosen is screened on a grid of sizes (``+-`` 0.5 to 16 typical sizes,
+   batched, every other fitting window), and the :data:`REFINE_TOP` best are refined by
+   :meth:`assist.diagnose.hypotheses.HypothesisFitter.refine` (least squares on the fitting
+   windows, each window from its own least-squares initial state, jointly with the terms already
+   chosen);
+2. each refined model is replayed on the held-out windows and ranked against the current model by
+   :func:`assist.diagnose.selection.rank`: a term is kept only if it is *supported* exactly as a
+   table cause must be (held-out improvement at least ``MIN_IMPROVEMENT`` noise variances, not
+   resting on a few windows, paying ``PARAM_PENALTY`` for its coefficient);
+3. the selection stops when no term is supported, when the extended model explains the log to
+   within the noise, or after :data:`MAX_TERMS`.
+
+Why not SINDy's sequentially thresholded least squares (pysindy) on the equations: that is an
+*equation-error* regression, which needs the derivatives of all states (``vy`` and the tire forces
+are not measured, ``phi`` only through a filter on real data) and, on closed-loop data from an
+open-loop-unstable vehicle, is biased by the noise the feedback feeds back into the regressors.
+The output-error fit over short windows (:mod:`assist.diagnose.replay`) needs neither, and
+selecting terms by *held-out* prediction error is cross-validated sparsity: the thresholding step
+of STLSQ replaced by the same acceptance test every table cause passes. The coefficients'
+standard deviations come from the weighted-residual Jacobian at the optimum,
+``std = sqrt(diag((J^T J)^-1) s^2)`` with ``s^2`` the residual variance per value (1 when the
+model explains the log to within the noise; larger when it does not, which widens them honestly).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import selection
+from .hypotheses import Fit, Hypothesis, HypothesisFitter
+from .params import CLOSURE_INDEX, CLOSURE_LIBRARY, CLOSURES
+
+#: Most closure terms an extension may hold.
+MAX_TERMS = 3
+#: Screened terms refined at each step of the selection.
+REFINE_TOP = 3
+#: Screening sizes in typical sizes of each coefficient (both signs).
+SCREEN_SIZES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+
+
+@dataclass
+class Extension:
+    """A model extension: the closure terms chosen and what they buy on held-out data."""
+
+    terms: list[dict]  #: diagnose.md: equation, term, coefficient, unit, std (and the term's name)
+    z: np.ndarray  #: full parameter vector of the extended model (its base + closures)
+    gain: float  #: held-out gain of the extended model over the nominal model
+    gain_over_base: float  #: held-out gain over the model it extends
+    S: float  #: held-out weighted sum of squares of the extended model
+    base: list[dict] = field(default_factory=list)  #: the table causes it extends ([] : the nominal model)
+    k_base: int = 0  #: free parameters of the base
+    steps: list[dict] = field(default_factory=list)  #: per step: the candidates' held-out scores
+
+    @property
+    def k(self) -> int:
+        """Free parameters: the base's and one per closure term."""
+        return self.k_base + len(self.terms)
+
+    def to_json(self) -> dict:
+        return {"terms": self.terms, "gain": round(float(self.gain), 4), "extends": self.base or "nominal model",
+                "gain_over_what_it_extends": round(float(self.gain_over_base), 4), "selection": self.steps}
+
+
+def _held_out_S(fitter: HypothesisFitter, Z: np.ndarray, test_w: np.ndarray, steps: int) -> np.ndarray:
+    rt, _ = fitter.replay.fit_states(Z, test_w, steps=steps)
+    return (rt**2).sum(axis=2)  # (H, Wt, C)
+
+
+def _usable(name: str, channels: tuple[str, ...]) -> bool:
+    eq = CLOSURES[name].equation
+    return not eq.startswith("sensor:") or eq.split(":", 1)[1] in channels
+
+
+def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, counts: np.ndarray,
+           channels: tuple[str, ...], S_nominal: float, explains, score_steps: int = 3) -> Extension | None:
+    """Forward selection of closure terms on top of ``base_z`` (module docstring).
+
+    Parameters
+    ----------
+    fitter : HypothesisFitter
+        The fitter of the diagnosis (its replay, fitting windows, parameter set).
+    base_z : ndarray
+        Parameter vector of the table verdict (nominal for ``none``).
+    test_w : ndarray of int
+        Held-out windows.
+    counts : ndarray, shape (Wt, C)
+        Scored values per held-out window and channel.
+    channels : tuple of str
+    S_nominal : float
+        Held-out weighted sum of squares of the nominal model (for the gain).
+    explains : callable
+        ``explains(z) -> bool``: whether a parameter vector explains the log to within the noise
+        (the diagnosis's own test), to stop early.
+
+    Returns
+    -------
+    Extension or None
+        ``None`` when no term is supported.
+    """
+    ps = fitter.params
+    chosen: list[str] = []
+    z = np.array(base_z, dtype=float)
+    steps_json: list[dict] = []
+    fits: dict[str, Fit] = {}
+    S_base = float(_held_out_S(fitter, z[None], test_w, score_steps).sum())
+    for _ in range(MAX_TERMS):
+        cands = [t.name for t in CLOSURE_LIBRARY if t.name not in chosen and _usable(t.name, channels)]
+        if not cands:
+            break
+        # 1. screening: every candidate on the grid of sizes, one batch
+        Z, owner = [z.copy()], [""]
+        for c in cands:
+            i = CLOSURE_INDEX[c]
+            for k in SCREEN_SIZES:
+                for sgn in (-1.0, 1.0):
+                    v = z[i] + sgn * k * ps.scale[i]
+                    if ps.lower[i] <= v <= ps.upper[i]:
+                        zz = z.copy()
+                        zz[i] = v
+                        Z.append(zz)
+                        owner.append(c)
+        r, _ = fitter.replay.fit_states(np.array(Z), fitter.widx[::2])
+        cost = np.einsum("mwkc,mwkc->m", r, r)
+        best_of = {c: min((cost[j], j) for j, o in enumerate(owner) if o == c) for c in cands}
+        top = sorted(cands, key=lambda c: best_of[c][0])[:REFINE_TOP]
+        # 2. refine the best, jointly with the terms already chosen, on top of the table verdict
+        names, zs = ["current"], [z]
+        for c in top:
+            hyp = Hypothesis(tuple(chosen) + (c,))
+            f = fitter.refine(hyp, Z[best_of[c][1]], base=z)
+            fits[c] = f
+            names.append(c)
+            zs.append(f.z)
+        S = _held_out_S(fitter, np.array(zs), test_w, score_steps)
+        ranked = selection.rank(names, [()] + [(c,) for c in top], [0] + [1] * len(top), S, counts, channels)
+        steps_json.append({"chosen_so_far": list(chosen),
+                           "candidates": [{"term": rk.name, "improvement": round(rk.improvement, 4),
+                                           "score": round(rk.score, 4), "supported": bool(rk.supported)}
+                                          for rk in selection.order(ranked) if rk.name != "current"]})
+        best = selection.choose(ranked)
+        if best.name == "current" or not best.supported:
+            break
+        chosen.append(best.name)
+        z = fits[best.name].z
+        if explains(z):
+            break
+    if not chosen:
+        return None
+    # the extended model's coefficients with their uncertainty (weighted-residual Jacobian)
+    last = fits[chosen[-1]]
+    J = np.asarray(last.extra.get("jac"), dtype=float)
+    n = max(fitter.n_values - len(chosen), 1)
+    s2 = max(last.cost / n, 1.0)
+    try:
+        cov = np.linalg.inv(J.T @ J) * s2
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        std = np.full(len(chosen), math.nan)
+    S_ext = float(_held_out_S(fitter, z[None], test_w, score_steps).sum())
+    terms = []
+    for j, c in enumerate(chosen):
+        t, i = CLOSURES[c], CLOSURE_INDEX[c]
+        sd = float(std[j]) if j < len(std) and math.isfinite(std[j]) else None
+        terms.append({"name": c, "equation": t.equation, "term": t.term, "coefficient": ps.params[i].report(z[i]),
+                      "unit": t.unit, "std": None if sd is None else float(f"{sd:.3g}")})
+    return Extension(terms=terms, z=z, gain=1.0 - math.sqrt(S_ext / S_nominal) if S_nominal > 0 else 0.0,
+                     gain_over_base=1.0 - math.sqrt(S_ext / S_base) if S_base > 0 else 0.0, S=S_ext,
+                     steps=steps_json)
+
+
+def best_extension(fitter: HypothesisFitter, bases: list[tuple[list[dict], int, np.ndarray]], test_w: np.ndarray,
+                   counts: np.ndarray, channels: tuple[str, ...], S_nominal: float, explains,
+                   score_steps: int = 3) -> Extension | None:
+    """:func:`extend` from each base ``(causes, k, z)`` (the nominal model, the table verdict), and
+    the better one by held-out improvement over nominal minus ``PARAM_PENALTY`` per parameter (its
+    base's and its terms'): a table cause that stood in for an effect outside the table (a steering
+    damping for Coulomb friction) must not be kept under the closures that explain it better."""
+    n = float(counts.sum())
+    best, best_score = None, -math.inf
+    for causes, k, z in bases:
+        e = extend(fitter, z, test_w, counts, channels, S_nominal, explains, score_steps)
+        if e is None:
+            continue
+        e.base, e.k_base = causes, k
+        score = (S_nominal - e.S) / n - selection.PARAM_PENALTY * e.k
+        if score > best_score:
+            best, best_score = e, score
+    return best
+
+
+__all__ = ["Extension", "extend", "best_extension", "MAX_TERMS", "REFINE_TOP", "SCREEN_SIZES"]
