@@ -239,7 +239,8 @@ def diagnose(
             f = fits[verdict.name]
             bases.append((replay.params.to_causes(f.hypothesis.causes, f.z), f.hypothesis.k, f.z))
         ext = best_extension(fitter, bases, test_w, counts, chans, float(S[0].sum()), explains,
-                             score_steps=SCORE_STATE_STEPS)
+                             score_steps=SCORE_STATE_STEPS, S_verdict=float(S[hv].sum()),
+                             k_verdict=fits[verdict.name].hypothesis.k)
         extended = ext is not None and explains(ext.z)
     roll = win.Y[..., chans.index("roll")] if "roll" in chans else _replayed_roll(replay, xa[0], all_w)
     nominal_where = breakdown(win, ra[0] * replay.sigma, sig_v, roll)

@@ -185,13 +185,17 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
 
 def best_extension(fitter: HypothesisFitter, bases: list[tuple[list[dict], int, np.ndarray]], test_w: np.ndarray,
                    counts: np.ndarray, channels: tuple[str, ...], S_nominal: float, explains,
-                   score_steps: int = 3) -> Extension | None:
+                   score_steps: int = 3, S_verdict: float | None = None, k_verdict: int = 0) -> Extension | None:
     """:func:`extend` from each base ``(causes, k, z)`` (the nominal model, the table verdict), and
     the better one by held-out improvement over nominal minus ``PARAM_PENALTY`` per parameter (its
     base's and its terms'): a table cause that stood in for an effect outside the table (a steering
-    damping for Coulomb friction) must not be kept under the closures that explain it better."""
+    damping for Coulomb friction) must not be kept under the closures that explain it better.
+    The table verdict itself (held-out ``S_verdict`` with ``k_verdict`` parameters) competes on the
+    same score: an extension that does not beat it is not reported (``None``)."""
     n = float(counts.sum())
     best, best_score = None, -math.inf
+    if S_verdict is not None:
+        best_score = (S_nominal - S_verdict) / n - selection.PARAM_PENALTY * k_verdict
     for causes, k, z in bases:
         e = extend(fitter, z, test_w, counts, channels, S_nominal, explains, score_steps)
         if e is None:
