@@ -291,7 +291,9 @@ class TheoremOptions:
         Decay rate ``eta`` [1/s] of the Lyapunov function *with* the ISS inputs, imposed by adding
         ``eta P1`` (resp. ``eta X2``) to the theorem's first diagonal block: ``V' <= -eta V +
         eps |input|^2``. 0 is the paper's theorem, whose minimised ``eps`` leave the inequality
-        nearly tight and the rate near 0 (module docstring, ISS bounds).
+        nearly tight and the rate small (reference scooter, 8-33 m/s: 0.24 1/s against the 2.0 1/s
+        imposed by default, with an 8.6x larger gain from the estimation error; module docstring,
+        ISS bounds).
     """
 
     zeta: tuple[float, float, float] = (1.0, 1.0, 1.0)

@@ -139,10 +139,12 @@ def test_iss_rate_is_imposed_and_the_paper_form_leaves_it_near_zero(dz):
     c = dz.controller
     assert c.iss["decay_rate"] >= dz.options.controller.iss_rate * (1 - 1e-6)
     assert c.iss["decay_rate"] <= c.iss["nominal_decay_rate"]
-    # The paper's form (iss_rate 0): the minimised eps leave the inequality nearly tight, the rate near 0.
+    # The paper's form (iss_rate 0): the minimised eps leave the inequality nearly tight, the rate small
+    # and the estimation-error gain large. Measured on the corrected scooter (a45 = +3.665 vx): rate
+    # 0.24 vs 2.01 1/s, gain 12119 vs 1414 (it was < 5 % and > 10x with the printed a45's sign).
     paper = design(options=DesignOptions(controller=TheoremOptions(decay=2.0, gain_weight=0.1)), cache=False)
-    assert paper.controller.iss["decay_rate"] < 0.05 * c.iss["decay_rate"]
-    assert paper.controller.iss["gain_estimation_error"] > 10 * c.iss["gain_estimation_error"]
+    assert paper.controller.iss["decay_rate"] < 0.25 * c.iss["decay_rate"]
+    assert paper.controller.iss["gain_estimation_error"] > 5 * c.iss["gain_estimation_error"]
     with pytest.raises(DesignOptionError, match="iss_rate"):
         TheoremOptions(decay=1.0, iss_rate=3.0)
 
