@@ -3,9 +3,19 @@
 Nehaoua, Ichalal, Arioui, Davila, Mammar, Fridman [1]_, sec. III, on the
 reference scooter, with the unknown inputs ``zeta`` (default ``[phi, tau]``,
 ``phi`` rearranged as an input, :mod:`assist.observability`) and the outputs
-the structural analysis finds (default ``[delta, r, phi_dot]``: the paper's
-``[delta, r]`` has an unstable invariant zero on this scooter at every speed,
-see ``ptw-assist observability``). The model (design speed ``v0``):
+the structural analysis finds. Both work on the reference scooter with
+model.md's corrected ``a45 = +3.665 vx`` (``ptw-assist observability``): the
+paper's ``[delta, r]`` is strongly detectable at every speed (4 stable zeros,
+the slowest -0.43 1/s at 5 m/s, -2.14 1/s at 100 km/h), as the paper says;
+the default ``[delta, r, phi_dot]`` (the IMU's roll-rate gyro added) has no
+invariant zero at all (strongly observable), converges faster and
+differentiates ``delta`` once less for ``phi``, which matters with sensor
+noise (lane change at 100 km/h, reference-log noise: phi 0.74 deg / tau 2.84
+N m RMSE with three outputs, 1.36 deg / 5.1 N m with ``[delta, r]`` and the
+Lipschitz constants tuned on another seed; noise-free 0.08 / 1.8 and 0.23 /
+1.9). With Table IV's printed ``-3.665 vx`` the paper's pair had a real
+unstable zero (+0.7 to +3.5 1/s) and could not be used. The model (design
+speed ``v0``):
 
 .. math::
 

@@ -23,8 +23,14 @@ Cases (:data:`CASES`):
 * ``c_roll_torque_delta_r`` — [1]_ eq. (10): ``phi`` and ``tau`` unknown,
   outputs ``delta`` and ``r`` (paper: ``r = [2, 1]``, 4 stable zeros);
 * ``d_roll_torque_delta_r_phidot`` and ``e_roll_torque_deltadot_r_phidot``
-  — the measurement sets that work for the reference scooter (add the roll-rate
-  gyro of the same IMU), found by :func:`measurement_search`.
+  — the paper's pair plus the roll-rate gyro of the same IMU (no invariant zero:
+  strongly observable), found by :func:`measurement_search`.
+
+On the reference scooter with model.md's corrected ``a45 = +3.665 vx``: case
+(c), the paper's working case, is strongly detectable at every speed of 5-40
+m/s (4 stable zeros, the slowest -0.43 1/s at 5 m/s); case (a) has its
+unstable real zero only below about 19 m/s (+3.53 1/s at 8 m/s); case (b) is
+detectable only at about 6-20 m/s.
 
 The analysis itself is :func:`assist.structure.analyse`.
 

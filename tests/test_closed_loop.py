@@ -216,4 +216,7 @@ def test_observability_cli_json(tmp_path):
         assert {"name", "unknown_inputs", "outputs", "speeds", "relative_degree", "invariant_zeros",
                 "strongly_detectable"} <= set(case)
     paper = next(c for c in d["cases"] if c["name"].startswith("c_"))
-    assert paper["outputs"] == ["delta", "r"] and not all(paper["strongly_detectable"])
+    # issue 15: with model.md's corrected a45 the paper's case is strongly detectable at every speed
+    assert paper["outputs"] == ["delta", "r"] and paper["unknown_inputs"] == ["phi", "tau"]
+    assert paper["strongly_detectable"] == [True, True, True]
+    assert all(max(z[0] for z in zs) < 0 for zs in paper["invariant_zeros"])
