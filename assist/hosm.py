@@ -472,9 +472,8 @@ def _structure(tr: PTWTriplet):
     where = f"outputs {tr.outputs}, unknown inputs {tr.unknown_inputs}, vx = {tr.vx:g} m/s"
     if not rep.left_invertible:
         raise HOSMDesignError(f"{where}: the unknown inputs are not left-invertible from the outputs")
-    if not rep.strongly_detectable:
-        bad = [z for z in rep.zeros if z.real >= 0]
-        raise HOSMDesignError(f"{where}: not strongly detectable, unstable invariant zero(s) {bad}; "
+    if not rep.strongly_detectable:  # an unstable or marginal zero (ptw_env.spectrum)
+        raise HOSMDesignError(f"{where}: not strongly detectable ({rep.reason}); "
                               "see `ptw-assist observability` for measurement sets that work")
     if any(r is None for r in rep.relative_degree):
         raise HOSMDesignError(f"{where}: an output has no relative degree (relative degrees {rep.relative_degree})")

@@ -247,6 +247,7 @@ def analyse_case(case: Case | str, speeds=None, vehicle: Vehicle | None = None) 
         "decoupling_rank": [int(rep.decoupling_rank) for rep in reps],
         "strongly_observable": [bool(rep.strongly_observable) for rep in reps],
         "strongly_detectable": [bool(rep.strongly_detectable) for rep in reps],
+        "reason": [rep.reason for rep in reps],  # "", "marginal zero ...", "unstable zero ...", "not left-invertible"
         "verdict": _verdict(sp, reps),
     }
 

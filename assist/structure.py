@@ -81,6 +81,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from ptw_env import spectrum
+
 #: Default relative tolerance of rank decisions (singular values below ``tol * ||system||``).
 DEFAULT_TOL = 1e-9
 
@@ -230,14 +232,15 @@ def _pencil_zeros(A, B, C, D, thresh) -> tuple[np.ndarray, int]:
 # ---------------------------------------------------------------------------
 # public tools
 # ---------------------------------------------------------------------------
+def _pencil_scale(A, D, C) -> float:
+    """Largest singular value of the Rosenbrock pencil's constant part ``[[A, D], [C, 0]]``: the
+    scale of the round-off in its zeros (:mod:`ptw_env.spectrum`)."""
+    p, q = C.shape[0], D.shape[1]
+    return float(np.linalg.norm(np.block([[A, D], [C, np.zeros((p, q))]]), 2))
+
+
 def _threshold(A, D, C, tol: float) -> float:
-    n, q = D.shape
-    p = C.shape[0]
-    big = np.zeros((n + p, n + q))
-    big[:n, :n] = A
-    big[:n, n:] = D
-    big[n:, :n] = C
-    return tol * max(1.0, float(np.linalg.norm(big, 2)))
+    return tol * max(1.0, _pencil_scale(A, D, C))
 
 
 def invariant_zeros(A, D, C, tol: float = DEFAULT_TOL, balanced: bool = True) -> np.ndarray:
@@ -461,6 +464,7 @@ class StructureReport:
     has_vector_relative_degree: bool
     strongly_observable: bool
     strongly_detectable: bool
+    reason: str = ""  #: why not strongly detectable: "not left-invertible", "unstable zero ...", "marginal zero ..."
 
     @property
     def max_zero_real(self) -> float:
@@ -498,7 +502,11 @@ def analyse(A, D, C, tol: float = DEFAULT_TOL, stability_margin: float = 0.0) ->
         dec_rank = _rank(decoupling_matrix(Ab, Db, Cb, r), thresh)
     has_vrd = p == q and all(ri is not None for ri in r) and dec_rank == q
     so = left_inv and zeros.size == 0
-    sd = left_inv and bool(np.all(zeros.real < -stability_margin))
+    # stable / marginal / unstable with the tolerance of ptw_env.spectrum, scaled to this pencil: a
+    # zero on the imaginary axis (0, +-j w) is never "stable" whatever sign round-off gives it
+    stable, why = spectrum.verdict(zeros, _pencil_scale(Ab, Db, Cb), margin=stability_margin)
+    sd = left_inv and stable
+    reason = "" if sd else ("not left-invertible" if not left_inv else why)
     return StructureReport(
         n=n,
         n_unknown=q,
@@ -512,6 +520,7 @@ def analyse(A, D, C, tol: float = DEFAULT_TOL, stability_margin: float = 0.0) ->
         has_vector_relative_degree=has_vrd,
         strongly_observable=so,
         strongly_detectable=sd,
+        reason=reason,
     )
 
 

@@ -101,6 +101,7 @@ from scipy.optimize import brentq, linear_sum_assignment
 
 from .dynamics import compile_plant, linearise
 from .effects import Effects, as_effects
+from .spectrum import marginal_tolerance
 from .vehicle import DELTA, DELTA_DOT, FYF, FYR, PHI, PHI_DOT, R, REFERENCE_SCOOTER, VY, Vehicle
 
 #: Mode names, in the order the eigenvalues of each speed are sorted.
@@ -325,6 +326,10 @@ class ModalResult:
         damper, for instance, gives a second, high-speed boundary.
         """
         re = np.array([self._grid_weave_real(k) for k in range(len(self.grid_speeds))])
+        # a real part within round-off of 0 is marginal (ptw_env.spectrum), not a sign
+        # (the scale: the spectral radius at each grid speed, a lower bound of ||E^-1 A||)
+        tol = [marginal_tolerance(float(np.abs(ev).max())) for ev in self.grid_eigenvalues]
+        re = np.where(np.abs(re) <= tol, 0.0, re)
         out = []
         for k in range(len(re) - 1):
             if np.sign(re[k]) != np.sign(re[k + 1]) and re[k] != 0 and np.all(np.isfinite(re[k : k + 2])):

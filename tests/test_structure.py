@@ -337,3 +337,45 @@ def test_case_b_detectable_only_at_low_speed(report):
     b = _case(report, "b_roll_delta")
     det = dict(zip(b["speeds"], b["strongly_detectable"]))
     assert det[8.0] and not det[27.78] and not det[33.0]
+
+
+# ---------------------------------------------------------------------------
+# marginal zeros (ptw_env.spectrum): on the imaginary axis to within round-off
+# ---------------------------------------------------------------------------
+@pytest.mark.parametrize("num, den, n_marginal", [
+    ([1, 0, 4, 0], np.poly([-1, -2, -3, -5]), 3),      # zeros 0, +-2j
+    ([1, 0], np.poly([-1, -2]), 1),                    # a pure differentiator: zero at 0
+    ([1, 0, 0], np.poly([-1, -2, -4]), 2),             # a repeated zero at 0
+    ([1, 0, 9], np.poly([-1, -2, -3]), 2),             # +-3j
+    (np.poly([-1.0, -1.0]), np.poly([-2, -3, -4]), 0),  # repeated stable zeros: not marginal
+])
+def test_marginal_zeros_are_never_stable_whatever_the_round_off(num, den, n_marginal):
+    """A zero on the imaginary axis comes out of LAPACK with a real part of +-1e-16 whose sign depends
+    on the build; under 20 random orthogonal changes of coordinates (which move that round-off) the
+    verdict is the same every time: 'marginal zero', not strongly detectable."""
+    from ptw_env.spectrum import classify
+
+    A, D, C = canonical(num, den)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        Q, _ = np.linalg.qr(rng.normal(size=A.shape))
+        rep = analyse(Q @ A @ Q.T, Q @ D, C @ Q.T)
+        kinds = classify(rep.zeros, np.linalg.norm(np.block([[A, D], [C, np.zeros((1, 1))]]), 2))
+        assert kinds.count("marginal") == n_marginal, (rep.zeros, kinds)
+        if n_marginal:
+            assert not rep.strongly_detectable and rep.reason.startswith("marginal zero"), rep.reason
+        else:
+            assert rep.strongly_detectable and rep.reason == ""
+
+
+def test_pure_integrator_eigenvalues_are_marginal_and_a_margin_moves_the_boundary():
+    from ptw_env.spectrum import classify, marginal_tolerance, verdict
+
+    lam = np.linalg.eigvals(np.array([[0.0, 1.0], [0.0, 0.0]]))  # double integrator
+    assert classify(lam, scale=1.0) == ("marginal", "marginal")
+    assert classify([-0.5 + 1e-12], scale=1.0, margin=0.5) == ("marginal",)
+    assert classify([-0.6], scale=1.0, margin=0.5) == ("stable",)
+    assert marginal_tolerance(1e5) == pytest.approx(1e-4) and marginal_tolerance(0.1) == pytest.approx(1e-9)
+    assert verdict([-1.0, 2e-3], scale=1.0) == (False, "unstable zero (0.002+0j)")
+    with pytest.raises(ValueError, match="scale"):
+        marginal_tolerance(float("nan"))
