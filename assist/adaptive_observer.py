@@ -760,8 +760,12 @@ class AdaptiveObserver:
             raise ObserverInputError(f"tau has a missing value at sample {int(np.flatnonzero(~np.isfinite(tau))[0])}")
         v = np.asarray(vx, dtype=float)
         v = gps_interpolate(t, v) if interpolate_speed else v
-        if not np.all(np.isfinite(v)) or np.any(v <= 0):
-            raise ObserverInputError("vx must be positive and finite at every sample (or interpolate_speed=True)")
+        bad_v = np.flatnonzero(~(v > 0) | ~np.isfinite(v))
+        if bad_v.size:
+            k = int(bad_v[0])
+            raise ObserverInputError(f"vx must be positive and finite at every sample: vx = {v[k]:g} m/s at sample {k} "
+                                     f"(t = {t[k]:g} s), {bad_v.size} such sample(s)"
+                                     + ("" if interpolate_speed else " (or interpolate_speed=True)"))
         X = np.zeros((K, 8))
         TH = np.zeros((K, 4))
         E6 = np.zeros((K, 6))

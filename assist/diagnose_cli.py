@@ -11,17 +11,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ptw_env.cli import CLIError, _check_outputs, _write_json, command
+from ptw_env.cli import CLIError, check_outputs, write_json, command, number, write_figure
 
 
-def _window(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a window length in seconds, got {text!r}") from None
-    if not (0.2 <= v <= 20.0):
-        raise argparse.ArgumentTypeError(f"window length must be in [0.2, 20] s, got {text!r}")
-    return v
+#: ``--window``: replay window length [s].
+_window = number(0.2, 20.0, unit="s")
 
 
 @command(
@@ -50,7 +44,7 @@ def _build_diagnose(p: argparse.ArgumentParser):
     def run(a: argparse.Namespace) -> int:
         from assist.diagnose import diagnose
 
-        _check_outputs(a, "json", "plot")
+        check_outputs(a, "json", "plot")
         log = Path(a.log)
         if not log.exists():
             raise FileNotFoundError(f"{log}: no such file")
@@ -61,10 +55,10 @@ def _build_diagnose(p: argparse.ArgumentParser):
         print(rep.summary())
         print(f"diagnosed in {rep.seconds:.1f} s ({100 * rep.sim_seconds / rep.seconds:.0f} % in the simulator)")
         if a.plot:
-            rep.plot(a.plot)
+            write_figure(a.plot, rep.plot)
             print(f"figure written to {a.plot}")
         if a.json:
-            _write_json(a.json, rep.to_json(), a.overwrite)
+            write_json(a.json, rep.to_json(), a.overwrite)
             print(f"report written to {a.json}")
         return 0
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ptw_env.cli import CLIError, _bank_or_auto, _check_outputs, _nonneg, _write_json, command
+from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure
 
 
 @command(
@@ -25,13 +25,13 @@ from ptw_env.cli import CLIError, _bank_or_auto, _check_outputs, _nonneg, _write
 )
 def _build(p: argparse.ArgumentParser):
     p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md); an extra 'kappa' column [1/m] is the map ahead")
-    p.add_argument("--noise", type=_nonneg, default=None, metavar="PCT",
+    p.add_argument("--noise", type=NOISE_PCT, default=None, metavar="PCT",
                    help="sensor noise in percent of range the observer is designed for "
                         "(default: the sidecar's noise_pct, else 5)")
     p.add_argument("--no-map", action="store_true", help="ignore a kappa column (no preview of the road ahead)")
-    p.add_argument("--confirm-sigmas", type=_nonneg, default=None, metavar="K",
-                   help="caution also when the grip is not confirmed at K sigma (default 2; 0: the estimate alone)")
-    p.add_argument("--road-bank", type=_bank_or_auto, default="auto", metavar="RAD|auto",
+    p.add_argument("--confirm-sigmas", type=number(0, 10), default=None, metavar="K",
+                   help="caution also when the grip is not confirmed at K sigma (0-10, default 2; 0: the estimate alone)")
+    p.add_argument("--road-bank", type=road_bank_or_auto, default="auto", metavar="RAD|auto",
                    help="bank (cross-fall) of the road: 'auto' (default) estimates it on line from the lateral "
                         "acceleration and the yaw rate on straights; a number in rad fixes it (e.g. from "
                         "'ptw-assist diagnose'; 0: level)")
@@ -51,8 +51,9 @@ def _build(p: argparse.ArgumentParser):
         from .risk.offline import assess_log, plot_risk
         from .risk.pipeline import RiskPipeline, default_estimator
 
-        _check_outputs(a, "plot", "json")
+        check_outputs(a, "plot", "json")
         log = read_log(a.log)
+        reference_scooter_log(log, "risk")
         dt = float(log.dt)
         pct = a.noise
         if pct is None:
@@ -100,11 +101,12 @@ def _build(p: argparse.ArgumentParser):
         if len(w) > 10:
             print(f"  ... {len(w) - 10} more in --json")
         if a.plot:
-            plot_risk(res, a.plot, mu_true=None if truth is None else truth[0],
-                      true_utilisation=None if truth is None else truth[1],
-                      saturation_t=None if truth is None else truth[2], title=f"risk warning: {a.log}")
+            write_figure(a.plot, lambda f: plot_risk(
+                res, f, mu_true=None if truth is None else truth[0],
+                true_utilisation=None if truth is None else truth[1],
+                saturation_t=None if truth is None else truth[2], title=f"risk warning: {a.log}"))
             print(f"figure written to {a.plot}")
-        _write_json(a.json, js, a.overwrite)
+        write_json(a.json, js, a.overwrite)
         return 0
 
     return run

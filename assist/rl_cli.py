@@ -12,25 +12,15 @@ import shlex
 import sys
 from pathlib import Path
 
-from ptw_env.cli import CLIError, _check_outputs, _seed, _write_json, command
+from ptw_env.cli import CLIError, check_outputs, SEED, write_json, command, number
 
 #: Settings of the shipped policy (``assist/policies/ppo_roll.json``).
 DEFAULT_STEPS = 6_000_000
 
 
-def _int_at_least(lo: int):
-    """argparse type: a whole number >= ``lo``."""
-
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            v = None
-        if v is None or v < lo:
-            raise argparse.ArgumentTypeError(f"expected a whole number >= {lo}, got {text!r}")
-        return v
-
-    return parse
+def _int_at_least(lo: int, hi: int = 10**12):
+    """argparse type: a whole number in ``[lo, hi]``."""
+    return number(lo, hi, integer=True)
 
 
 @command(
@@ -42,12 +32,12 @@ def _build_train_rl(p: argparse.ArgumentParser):
     p.add_argument("--algo", choices=("ppo", "sac"), default="ppo")
     p.add_argument("--steps", type=_int_at_least(1), default=DEFAULT_STEPS, metavar="N",
                    help=f"environment steps of 10 ms over all copies (default {DEFAULT_STEPS}, the shipped policy's)")
-    p.add_argument("--seed", type=_seed, default=0, metavar="N",
+    p.add_argument("--seed", type=SEED, default=0, metavar="N",
                    help="seed of torch, numpy and the environments (default 0)")
-    p.add_argument("--n-envs", type=_int_at_least(1), default=4, metavar="N", help="environment copies (default 4)")
+    p.add_argument("--n-envs", type=_int_at_least(1, 4096), default=4, metavar="N", help="environment copies (default 4)")
     p.add_argument("--vec", choices=("dummy", "subproc"), default="dummy",
                    help="copies in this process or one process each (default dummy: faster here, scripts/bench_rl.py)")
-    p.add_argument("--threads", type=_int_at_least(1), default=1, metavar="N",
+    p.add_argument("--threads", type=_int_at_least(1, 1024), default=1, metavar="N",
                    help="torch threads (default 1: faster on 2 cores, scripts/bench_rl.py)")
     p.add_argument("--checkpoint-every", type=_int_at_least(0), default=500_000, metavar="N",
                    help="save a checkpoint every N steps into <out stem>_checkpoints/ (0: none; default 500000)")
@@ -66,7 +56,7 @@ def _build_train_rl(p: argparse.ArgumentParser):
         a.sidecar = str(out.with_suffix(".json"))
         if a.json is not None and Path(a.json).resolve() == Path(a.sidecar).resolve():
             raise CLIError(f"--json: {a.json} is the policy's provenance file; choose another name")
-        _check_outputs(a, "out", "sidecar", "json")
+        check_outputs(a, "out", "sidecar", "json")
         for opt, f in (("--out", out), ("--json", None if a.json is None else Path(a.json))):
             # before training, not after: a run may take an hour
             if f is not None and not (f.parent.is_dir() and os.access(f.parent, os.W_OK)):
@@ -81,7 +71,7 @@ def _build_train_rl(p: argparse.ArgumentParser):
               f"{res.meta['eval_rides']['episodes']} evaluation rides: trained {res.final_reward:.0f}, untrained "
               f"{res.initial_reward:.0f}, random actions {res.random_reward:.0f} (1 per 10 ms step of perfect tracking)")
         print(f"policy written to {res.path} (+ {Path(a.sidecar).name})")
-        _write_json(a.json, res.to_json(), a.overwrite)
+        write_json(a.json, res.to_json(), a.overwrite)
         return 0
 
     return run

@@ -11,9 +11,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any, Callable, Sequence
+
+from .outputs import atomic_path, atomic_write_text, check_writable
 
 #: subcommand name -> (parser builder returning the runner, help, example); each feature adds its own
 _COMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], Callable[[argparse.Namespace], int]], str, str]] = {}
@@ -33,73 +36,165 @@ def command(name: str, help: str, example: str):
     return deco
 
 
-def _check_outputs(args: argparse.Namespace, *names: str) -> None:
-    """Refuse to overwrite existing output files unless --overwrite."""
+def check_outputs(args: argparse.Namespace, *names: str) -> None:
+    """Check every output option before the work (:func:`ptw_env.outputs.check_writable`)."""
     for n in names:
         p = getattr(args, n, None)
-        if p is None:
-            continue
-        p = Path(p)
-        if p.exists() and not getattr(args, "overwrite", False):
-            raise FileExistsError(f"{p} exists; pass --overwrite to replace it")
-        if not p.parent.exists():
-            raise CLIError(f"--{n.replace('_', '-')}: directory {p.parent} does not exist")
+        if p is not None:
+            check_writable(p, f"--{n.replace('_', '-')}", overwrite=bool(getattr(args, "overwrite", False)))
+            if n in ("plot", "locus"):
+                _check_figure_format(p, f"--{n}")
 
 
-def _write_json(path: str | None, obj: dict[str, Any], overwrite: bool) -> None:
+def _check_figure_format(path: str | os.PathLike, option: str) -> None:
+    from matplotlib.figure import Figure
+
+    kinds = Figure().canvas.get_supported_filetypes()
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in kinds:
+        raise CLIError(f"{option}: {path}: a figure needs one of the suffixes {', '.join('.' + k for k in sorted(kinds))}")
+
+
+def write_json(path: str | None, obj: dict[str, Any], overwrite: bool) -> None:
+    """Write a command's JSON (strict: no NaN or inf, cli.md) atomically."""
     if path is None:
         return
     p = Path(path)
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p} exists; pass --overwrite to replace it")
-    p.write_text(json.dumps(obj, indent=2, allow_nan=False) + "\n")
-
-
-def _speeds(text: str) -> list[float]:
+    check_writable(p, "--json", overwrite=overwrite)
     try:
-        vals = [float(s) for s in text.split(",") if s.strip()]
-    except ValueError:
+        text = json.dumps(obj, indent=2, allow_nan=False) + "\n"
+    except ValueError as exc:  # a NaN/inf that a command let through: name it rather than write invalid JSON
+        raise CLIError(f"--json: the result holds a value JSON cannot represent ({exc}); nothing written") from None
+    atomic_write_text(p, text)
+
+
+def reference_scooter_log(log: Any, command: str) -> None:
+    """Refuse a log whose sidecar names another vehicle than the reference scooter, or that
+    steers beyond its lock (:func:`ptw_env.logs.check_against_vehicle`).
+
+    For the commands whose observers are designed on the reference scooter only
+    (``estimate``, ``risk``): running them on another vehicle's log would be a silent guess.
+    """
+    from .logs import check_against_vehicle
+    from .vehicle import REFERENCE_SCOOTER
+    from .vehicle_files import vehicle_of_log
+
+    try:
+        v = vehicle_of_log(log.meta, log.path)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    if v is not None and v.identity()["model_sha256"] != REFERENCE_SCOOTER.identity()["model_sha256"]:
+        raise CLIError(f"{log.path}: the sidecar's vehicle is {v.name!r}; '{command}' runs observers designed on "
+                       f"the reference scooter only, which would misread another vehicle's log "
+                       f"('ptw-assist diagnose' takes any vehicle)")
+    try:
+        check_against_vehicle(log, v or REFERENCE_SCOOTER)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+
+
+def write_figure(path: str | os.PathLike, draw: Callable[[Path], Any]) -> None:
+    """Draw a figure into a temporary file beside ``path`` and move it there when complete."""
+    with atomic_path(path) as tmp:
+        draw(tmp)
+
+
+def number(lo: float = -math.inf, hi: float = math.inf, *, unit: str = "", integer: bool = False,
+           lo_open: bool = False, hi_open: bool = False) -> Callable[[str], float]:
+    """An argparse ``type`` for a numeric option with a documented valid range.
+
+    The text must be a plain ASCII decimal (``ptw_env.logs.is_plain_number``: no ``nan``,
+    ``inf``, ``1_000`` or non-ASCII digits) within ``[lo, hi]`` (open ends with
+    ``lo_open``/``hi_open``); ``integer`` asks for a whole number. The checker carries
+    its range in ``.range`` (read by the option sweep of ``scripts/fuzz_cli.py``) and
+    states it in every refusal.
+
+    >>> f = number(0, 100, unit="%")
+    >>> f("5"), f.range
+    (5.0, (0, 100, False, False))
+    >>> f("nan")
+    Traceback (most recent call last):
+    argparse.ArgumentTypeError: expected a number in [0, 100] %, got 'nan'
+    """
+    from .logs import is_plain_number
+
+    def fmt(x: float) -> str:
+        return str(int(x)) if integer and math.isfinite(x) else f"{x:g}"
+
+    span = f"{'(' if lo_open else '['}{fmt(lo)}, {fmt(hi)}{')' if hi_open else ']'}" + (f" {unit}" if unit else "")
+    what = "a whole number" if integer else "a number"
+
+    def parse(text: str) -> float:
+        ok = is_plain_number(text)
+        v = float(text) if ok else math.nan
+        if ok and integer and not v.is_integer():
+            ok = False
+        if not ok or not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo) or (hi_open and v == hi):
+            raise argparse.ArgumentTypeError(f"expected {what} in {span}, got {text!r}")
+        return int(v) if integer else v
+
+    parse.range = (lo, hi, lo_open, hi_open)  # type: ignore[attr-defined]
+    parse.integer = integer  # type: ignore[attr-defined]
+    parse.__name__ = f"number{span.replace(' ', '')}"
+    return parse
+
+
+#: Bounds of numeric options that hold for any two-wheeler (ptw_env.logs.PHYSICAL_BOUNDS); a vehicle's own
+#: range is checked by the command that knows the vehicle.
+SPEED_MS = number(0, 170, unit="m/s", lo_open=True)
+SPEED_KMH = number(0, 612, unit="km/h", lo_open=True)
+
+
+def speed_list(text: str) -> list[float]:
+    """``--speeds V1,V2,...``: comma-separated forward speeds [m/s], each in (0, 170]."""
+    vals = []
+    for s in text.split(","):
+        if s.strip():
+            try:
+                vals.append(SPEED_MS(s))
+            except argparse.ArgumentTypeError:
+                raise argparse.ArgumentTypeError(f"expected comma-separated speeds in m/s in (0, 170], e.g. "
+                                                 f"5,10,20,30; {s.strip()!r} of {text!r} is not one") from None
+    if not vals:
         raise argparse.ArgumentTypeError(f"expected comma-separated speeds in m/s, e.g. 5,10,20,30; got {text!r}")
-    if not vals or any(not math.isfinite(v) or v <= 0 for v in vals):
-        raise argparse.ArgumentTypeError(f"speeds must be positive numbers in m/s, got {text!r}")
     return vals
 
 
-def _seed(text: str) -> int:
-    """A seed for numpy's generators: a whole number >= 0."""
+#: ``--seed``: a whole number for numpy's generators, 0 .. 2**63 - 1.
+SEED = number(0, 2**63 - 1, integer=True)
+#: ``--noise``: sensor noise in percent of each channel's range.
+NOISE_PCT = number(0, 100, unit="%")
+
+
+def effect_arg(text: str) -> str:
+    """``--effect CAUSE:PARAM=VALUE``: checked against effects.md when parsed (:meth:`ptw_env.effects.Effects.parse`)."""
+    from .effects import Effects
+
     try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"a seed must be >= 0, got {text!r}")
-    return v
+        Effects.parse([text])
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
-def _nonneg(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}")
-    if not math.isfinite(v) or v < 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
-    return v
-
-
-def _bank_or_auto(text: str) -> float | str:
+def road_bank_or_auto(text: str) -> float | str:
     """``--road-bank`` of the risk warning: an angle in rad, or ``auto`` (estimated on line)."""
-    return "auto" if text.strip().lower() == "auto" else _bank(text)
+    return "auto" if text.strip().lower() == "auto" else road_bank(text)
 
 
-def _bank(text: str) -> float:
+_bank_number = number(-0.5, 0.5, unit="rad", lo_open=True, hi_open=True)
+
+
+def road_bank(text: str) -> float:
     """``--road-bank``: an angle in rad, |bank| < 0.5 (a value in degrees is refused)."""
     try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(v) or abs(v) >= 0.5:
-        raise argparse.ArgumentTypeError(f"{text} is not a road bank in rad (|bank| < 0.5; degrees? 3 deg = 0.052 rad)")
-    return v
+        return _bank_number(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a road bank in rad (|bank| < 0.5; degrees? "
+                                         "3 deg = 0.052 rad)") from None
+
+
+road_bank.range = _bank_number.range  # type: ignore[attr-defined]
 
 
 # ---------------------------------------------------------------------------- simulate
@@ -112,13 +207,14 @@ def _build_simulate(p: argparse.ArgumentParser):
     from .scenarios import scenario_names
 
     p.add_argument("--scenario", default="double_lane_change", choices=scenario_names(), help="scenario name")
-    p.add_argument("--speed", type=float, default=None, metavar="KMH", help="cruise speed [km/h] where the scenario has one")
-    p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE",
+    p.add_argument("--speed", type=SPEED_KMH, default=None, metavar="KMH", help="cruise speed [km/h] where the scenario has one")
+    p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE", type=effect_arg,
                    help="an effect of effects.md in the true plant (repeatable)")
-    p.add_argument("--noise", type=_nonneg, default=None, metavar="PCT",
+    p.add_argument("--noise", type=NOISE_PCT, default=None, metavar="PCT",
                    help="sensor noise in percent of each channel's range (default: the reference logs' sensors)")
-    p.add_argument("--seed", type=_seed, default=0, help="seed of the sensor noise, rider noise and initial state")
-    p.add_argument("--rider-noise", type=_nonneg, default=3.0, metavar="NM", help="rider random torque [N m] (default 3)")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the sensor noise, rider noise and initial state")
+    p.add_argument("--rider-noise", type=number(0, 1e4, unit="N m"), default=None, metavar="NM",
+                   help="rider random torque [N m] (default: the vehicle's, ptw_env.ride.RIDER_NOISE_NM scaled)")
     p.add_argument("--log", required=True, metavar="OUT.csv", help="ride log to write (logs.md), with a JSON sidecar")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
@@ -131,7 +227,7 @@ def _build_simulate(p: argparse.ArgumentParser):
         log_path = Path(a.log)
         sidecar = log_path.with_suffix(".json")
         a.sidecar = str(sidecar)
-        _check_outputs(a, "log", "sidecar", "plot", "json")
+        check_outputs(a, "log", "sidecar", "plot", "json")
         effects = Effects.parse(a.effect)
         res = ride_scenario(a.scenario, speed_kmh=a.speed, effects=effects, noise_pct=a.noise, seed=a.seed,
                             rider_noise_nm=a.rider_noise)
@@ -142,9 +238,9 @@ def _build_simulate(p: argparse.ArgumentParser):
               f"max roll {s['roll_max_deg']:.1f} deg, torque RMS {s['torque_rms_nm']:.1f} N m; effects: {effects}")
         print(f"log written to {log_path} (+ {sidecar.name})")
         if a.plot:
-            plot_ride(res, a.plot)
+            write_figure(a.plot, lambda f: plot_ride(res, f))
             print(f"figure written to {a.plot}")
-        _write_json(a.json, {**s, "log": str(log_path), "effects": effects.to_causes(), "seed": a.seed}, a.overwrite)
+        write_json(a.json, {**s, "log": str(log_path), "effects": effects.to_causes(), "seed": a.seed}, a.overwrite)
         return 0
 
     return run
@@ -160,9 +256,9 @@ def _build_modes(p: argparse.ArgumentParser):
     p.add_argument("--vehicle", default="reference-scooter", metavar="NAME_OR_FILE",
                    help="a vehicle preset (reference-scooter, sharp1971, cossalter-sport-touring) or the path of a "
                         "TOML parameter file (ptw_env.vehicle_files); default reference-scooter")
-    p.add_argument("--speeds", type=_speeds, default=[5.0, 10.0, 20.0, 30.0], metavar="V1,V2,...",
-                   help="speeds in m/s (default 5,10,20,30)")
-    p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE")
+    p.add_argument("--speeds", type=speed_list, default=None, metavar="V1,V2,...",
+                   help="speeds in m/s (default: 5 speeds evenly across the vehicle's valid range)")
+    p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE", type=effect_arg)
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--locus", default=None, metavar="OUT.png",
                    help="also write the classic root locus (Sharp 1971 style: real part vs frequency, speeds marked)")
@@ -178,7 +274,9 @@ def _build_modes(p: argparse.ArgumentParser):
             v = load_vehicle(a.vehicle)
         except ValueError as exc:
             raise CLIError(f"--vehicle: {exc}") from None
-        _check_outputs(a, "plot", "locus", "json")
+        check_outputs(a, "plot", "locus", "json")
+        if a.speeds is None:
+            a.speeds = [round(v.vmin + (v.vmax - v.vmin) * k / 4, 3) for k in range(5)]
         bad = [s for s in a.speeds if not (v.vmin <= s <= v.vmax)]
         if bad:
             raise CLIError(f"--speeds: {bad} m/s outside the valid range [{v.vmin}, {v.vmax}] m/s of {v.name}")
@@ -194,12 +292,12 @@ def _build_modes(p: argparse.ArgumentParser):
             print(f"vx = {s:5.1f} m/s: " + ", ".join(parts))
         print(f"{v.name}: weave stability speed {res.stability_speed():.2f} m/s")
         if a.plot:
-            plot_modes(res, a.plot)
+            write_figure(a.plot, lambda f: plot_modes(res, f))
             print(f"figure written to {a.plot}")
         if a.locus:
-            plot_modes(res, a.locus, classic=True)
+            write_figure(a.locus, lambda f: plot_modes(res, f, classic=True))
             print(f"root locus written to {a.locus}")
-        _write_json(a.json, js, a.overwrite)
+        write_json(a.json, js, a.overwrite)
         return 0
 
     return run
@@ -232,13 +330,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "command", None):
-        parser.print_help()
+        parser.print_usage(sys.stderr)
+        print("ptw-assist: error: a command is required (ptw-assist --help lists them)", file=sys.stderr)
         return 2
     try:
         return int(args._run(args) or 0)
     except (ValueError, FileExistsError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-        print(f"ptw-assist {args.command}: error: {exc}", file=sys.stderr)
+        print(f"ptw-assist {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the file system failed under the work (disk full, device gone): say so, no traceback
+        where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+        print(f"ptw-assist {args.command}: error: {_describe_os(exc)}{where}; no output was left half-written",
+              file=sys.stderr)
+        return 1
+    except MemoryError:
+        print(f"ptw-assist {args.command}: error: out of memory; reduce the problem's size", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"ptw-assist {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc) or type(exc).__name__
+    if isinstance(exc, OSError) and exc.strerror and exc.filename:  # FileNotFoundError and friends
+        text = f"{exc.filename}: {exc.strerror}"
+    return " ".join(text.split())
+
+
+def _describe_os(exc: OSError) -> str:
+    return exc.strerror or str(exc) or type(exc).__name__
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -149,10 +149,11 @@ class Effects:
                 name, eq, val = item.partition("=")
                 if not eq:
                     raise EffectError(f"effect {spec!r}: {item!r} is not PARAM=VALUE")
-                try:
-                    out[cause][name.strip()] = float(val)
-                except ValueError:
-                    raise EffectError(f"effect {spec!r}: value {val!r} of {name.strip()} is not a number") from None
+                from .logs import is_plain_number
+
+                if not is_plain_number(val):
+                    raise EffectError(f"effect {spec!r}: value {val!r} of {name.strip()} is not a number (plain ASCII decimal expected)")
+                out[cause][name.strip()] = float(val)
         return cls(out)
 
     @classmethod

@@ -21,24 +21,32 @@ roll        roll angle, IMU attitude filter            rad      no
 
 What the reader accepts and rejects
 -----------------------------------
-Accepted: column order is free; extra columns; surrounding spaces in cells and
-header names; a UTF-8 byte-order mark; ``\\n`` or ``\\r\\n`` line ends; blank
-lines at the end of the file; a missing sidecar. An **empty cell is a
-dropout** and reads as NaN; the text ``nan`` (any case, as ``numpy.savetxt``
-writes it) is read the same way, since it can only mean a missing value.
+Accepted: column order is free; extra columns (numeric ones are kept, one that
+holds text anywhere is ignored as a whole and named in
+:attr:`RideLog.ignored_columns`, as logs.md says extra columns are ignored);
+surrounding spaces in cells and header names; a UTF-8 byte-order mark; ``\\n``
+or ``\\r\\n`` line ends; blank lines at the end of the file; a missing sidecar.
+An **empty cell is a dropout** and reads as NaN (logs.md: only an empty cell).
 
 Rejected with :class:`LogFormatError` (one message naming the file, the line,
 1-based with the header on line 1, and the column): an empty file; a header
 with an empty, duplicated or missing required column name; a row with the
-wrong number of fields; a cell that is not a number; ``inf`` in any cell
-(a sensor never reads infinity; it is a broken export); an empty or ``nan``
-time ``t`` (time cannot be missing); time that does not strictly increase
-(both lines named); non-uniform sampling, a step differing from the median
-step by more than :data:`SAMPLING_TOLERANCE` (1 %) of it (e.g. dropped rows;
-a dropout must be a row of empty cells, not a missing row); a log shorter than
+wrong number of fields; a cell of a known column that is not a plain ASCII
+decimal number (``1_000`` and non-ASCII digits, which Python's ``float``
+would take, are refused); ``nan`` or ``inf`` in a known column (a sensor
+never reads them; a dropout is an empty cell); a value outside the
+:data:`PHYSICAL_BOUNDS` of its channel (no two-wheeler's sensor can read it:
+``vx = 200`` m/s, ``-1e300``; a speed that must be positive is the commands' check); an empty time ``t`` (time
+cannot be missing); time that does not strictly increase (both lines named);
+non-uniform sampling, a step differing from the median step by more than
+:data:`SAMPLING_TOLERANCE` (1 %) of it (e.g. dropped rows; a dropout must be a
+row of empty cells, not a missing row); a log shorter than
 :data:`MIN_SAMPLES` samples or ``min_duration_s``; a sidecar that is not a
 JSON object (named with its line and character column), or whose
 ``sample_rate_hz`` disagrees with the CSV's time column by more than 1 %.
+Bounds that depend on the vehicle (its speed range, its steering lock) are
+checked by the commands against the vehicle that runs
+(:func:`check_against_vehicle`).
 
 Examples
 --------
@@ -60,12 +68,15 @@ import io
 import json
 import math
 import os
+import re
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
+
+from .outputs import atomic_write_text
 
 #: Columns every ride log has (logs.md).
 REQUIRED_COLUMNS: tuple[str, ...] = ("t", "tau", "vx", "delta", "delta_rate", "yaw_rate", "roll_rate", "ay")
@@ -77,6 +88,20 @@ KNOWN_COLUMNS: tuple[str, ...] = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
 COLUMN_UNITS: Mapping[str, str] = {
     "t": "s", "tau": "N m", "vx": "m/s", "delta": "rad", "delta_rate": "rad/s",
     "yaw_rate": "rad/s", "roll_rate": "rad/s", "ay": "m/s^2", "roll": "rad",
+}  # fmt: skip
+
+#: Readings no two-wheeler's sensor can produce, per known column: ``(low, high)``
+#: in the column's unit. They catch broken exports (``-1e300``, a speed in km/h
+#: written as m/s far beyond any PTW), not vehicle limits: |vx| <= 170 m/s (the
+#: motorcycle land-speed record is 605 km/h = 168 m/s), steer and roll angles
+#: within +/-pi/2 (the model's geometry ends at a right angle), angular rates
+#: within +/-100 rad/s (MEMS gyros saturate at 35-70 rad/s), ay within
+#: +/-1000 m/s^2 (100 g; PTW accelerometers range 2-16 g), torque within
+#: +/-10 kN m.
+PHYSICAL_BOUNDS: Mapping[str, tuple[float, float]] = {
+    "t": (-1e9, 1e9), "tau": (-1e4, 1e4), "vx": (-170.0, 170.0), "delta": (-math.pi / 2, math.pi / 2),
+    "delta_rate": (-100.0, 100.0), "yaw_rate": (-100.0, 100.0), "roll_rate": (-100.0, 100.0),
+    "ay": (-1000.0, 1000.0), "roll": (-math.pi / 2, math.pi / 2),
 }  # fmt: skip
 
 #: Fewest samples a log may have (two give a rate; ten make it a signal).
@@ -222,6 +247,11 @@ class RideLog:
         Sidecar content (``{}`` when there is none).
     path : Path or None
         Where the log was read from.
+    ignored_columns : tuple of str
+        Extra columns of the file that hold text and were ignored (logs.md).
+    lines : tuple of int
+        The file line of each sample (the header is line 1), for messages
+        (:meth:`where`); empty when the log was not read from a file.
 
     Raises
     ------
@@ -234,6 +264,8 @@ class RideLog:
     columns: dict[str, np.ndarray]
     meta: dict = field(default_factory=dict)
     path: Path | None = None
+    ignored_columns: tuple[str, ...] = ()
+    lines: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         t = self._as_column("t", self.t)
@@ -280,6 +312,14 @@ class RideLog:
         if v.ndim != 1:
             raise LogDataError(f"column {name!r} must be one-dimensional, got shape {v.shape}", column=name)
         return v
+
+    def where(self, i: int) -> str:
+        """Where sample ``i`` is, for a message: ``"<file> line L (sample i, t = ... s)"``."""
+        i = int(i)
+        at = f"sample {i}, t = {self.t[i]:.3f} s"
+        if self.path is not None and len(self.lines) == len(self.t):
+            return f"{self.path} line {self.lines[i]} ({at})"
+        return f"{self.path or 'log'} ({at})"
 
     # -- channels -----------------------------------------------------------------
     def __getitem__(self, column: str) -> np.ndarray:
@@ -376,26 +416,100 @@ def _read_sidecar(sidecar: Path) -> tuple[dict, str]:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise LogFormatError(sidecar, raw.count(b"\n", 0, e.start) + 1, None, "not UTF-8 text") from None
+    def constant(name: str) -> Any:  # Python's json takes NaN and Infinity; strict JSON does not
+        raise ValueError(name)
+
     try:
-        meta = json.loads(text)
+        meta = json.loads(text, parse_constant=constant)
     except json.JSONDecodeError as e:
         raise LogFormatError(sidecar, e.lineno, e.colno, f"not valid JSON: {e.msg}") from None
+    except ValueError as e:
+        raise LogFormatError(sidecar, text.count("\n", 0, max(text.find(str(e)), 0)) + 1, None,
+                             f"not valid JSON: {e} is not a JSON number (use null for a missing value)") from None
     if not isinstance(meta, dict):
         raise LogFormatError(sidecar, 1, None, f"the sidecar must be a JSON object {{...}}, got {type(meta).__name__}")
+    for key, problem in _sidecar_problems(meta):
+        raise LogFormatError(sidecar, _line_of_key(text, key), key, problem)
     return meta, text
 
 
+#: Sidecar keys the project reads, with what each must be (logs.md; ``truth`` as the simulators write it).
+SIDECAR_KEYS: Mapping[str, str] = {
+    "vehicle": "a vehicle preset name or a vehicle file (a non-empty string)",
+    "vehicle_file": "the path of a vehicle file (a non-empty string)",
+    "sample_rate_hz": "a positive number [Hz]",
+    "noise_pct": "a number in [0, 100] (sensor noise in percent of each channel's range)",
+    "truth": 'an object {"causes": [{"cause": NAME, "params": {NAME: NUMBER}}]}',
+}
+
+
+def _is_number(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def _sidecar_problems(meta: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """``(key, what is wrong)`` for each known sidecar key of the wrong type or out of range."""
+    out = []
+    for key in ("vehicle", "vehicle_file"):
+        if key in meta and meta[key] is not None and not (isinstance(meta[key], str) and meta[key].strip()):
+            out.append((key, f"must be {SIDECAR_KEYS[key]}, got {meta[key]!r}"))
+    r = meta.get("sample_rate_hz")
+    if r is not None and not (_is_number(r) and r > 0):
+        out.append(("sample_rate_hz", f"must be {SIDECAR_KEYS['sample_rate_hz']}, got {r!r}"))
+    n = meta.get("noise_pct")
+    if n is not None and not (_is_number(n) and 0 <= n <= 100):
+        out.append(("noise_pct", f"must be {SIDECAR_KEYS['noise_pct']}, got {n!r}"))
+    if "truth" in meta and meta["truth"] is not None:
+        tr = meta["truth"]
+        causes = tr.get("causes") if isinstance(tr, dict) else None
+        ok = isinstance(causes, list) and all(
+            isinstance(c, dict) and isinstance(c.get("cause"), str)
+            and isinstance(c.get("params", {}), dict) and all(_is_number(v) for v in c.get("params", {}).values())
+            for c in causes)
+        if not ok:
+            out.append(("truth", f"must be {SIDECAR_KEYS['truth']}, got {json.dumps(tr)[:80]}"))
+    return out
+
+
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+#: The only blanks a cell may carry around its number (or be made of, for a dropout): ASCII space
+#: and tab. A non-breaking space or a form feed is not blank; it is text.
+_BLANKS = " \t"
+#: A row holding any other character needs the cell-by-cell check.
+_NOT_PLAIN = re.compile(r"[^0-9eE+\-. \t]")
+
+
+def is_plain_number(text: str) -> bool:
+    """True if ``text`` (spaces around allowed) is a plain ASCII decimal number: ``-1.5e3``, ``.5``, ``7``.
+
+    Python's ``float`` also takes ``1_000``, non-ASCII digits (``'\\u0661'``), ``nan`` and
+    ``infinity``; none of them is data in a ride log or on a command line.
+
+    >>> [is_plain_number(s) for s in ("-1.5e3", " .5 ", "1_000", "\\u0661", "nan", "1e", "")]
+    [True, True, False, False, False, False, False]
+    """
+    return _NUMBER.fullmatch(text.strip(_BLANKS)) is not None
+
+
 def _cell_error(path: Path, line: int, name: str, cell: str) -> LogFormatError | None:
-    """The error for one cell, or None if it is a number or a dropout."""
-    s = cell.strip()
-    if not s or s.lower() == "nan":
+    """The error for one cell, or None if it is a plain number or a dropout (an empty cell)."""
+    s = cell.strip(_BLANKS)
+    if not s:
         return LogFormatError(path, line, name, "t is missing; time cannot be missing") if name == "t" else None
-    try:
-        v = float(s)
-    except ValueError:
-        return LogFormatError(path, line, name, f"{cell!r} is not a number")
+    if not is_plain_number(s):
+        if s.lower() in ("nan", "+nan", "-nan"):
+            return LogFormatError(path, line, name, f"{cell!r} is not a number (a dropout is an empty cell)")
+        if s.lower().lstrip("+-") in ("inf", "infinity"):
+            return LogFormatError(path, line, name, f"{cell!r} is not finite (a dropout is an empty cell)")
+        return LogFormatError(path, line, name, f"{cell!r} is not a number (plain ASCII decimal expected)")
+    v = float(s)
     if math.isinf(v):
-        return LogFormatError(path, line, name, f"{cell!r} is not finite (a dropout is an empty cell)")
+        return LogFormatError(path, line, name, f"{cell!r} overflows to infinity (not finite)")
+    lo, hi = PHYSICAL_BOUNDS.get(name, (-math.inf, math.inf))
+    if not (lo <= v <= hi):
+        unit = COLUMN_UNITS.get(name, "")
+        return LogFormatError(path, line, name, f"{s} {unit} is outside what a two-wheeler's sensor can read "
+                                                f"[{lo:g}, {hi:g}] {unit} (ptw_env.logs.PHYSICAL_BOUNDS)")
     return None
 
 
@@ -462,13 +576,17 @@ def read_log(path: str | os.PathLike, min_duration_s: float = 1.0) -> RideLog:
             )  # fmt: skip
 
         ncol = len(names)
+        known = [n in KNOWN_COLUMNS for n in names]
+        lo = np.array([PHYSICAL_BOUNDS.get(n, (-math.inf, math.inf))[0] for n in names])
+        hi = np.array([PHYSICAL_BOUNDS.get(n, (-math.inf, math.inf))[1] for n in names])
+        text_cols: set[int] = set()  # extra columns holding text: ignored (logs.md)
         rows: list[list[float]] = []
         lines: list[int] = []
         blank: int | None = None  # first blank line after the last data row
         nan = math.nan
         for rec in reader:
             line = reader.line_num
-            if not rec or (len(rec) == 1 and not rec[0].strip() and ncol > 1):
+            if not rec or (len(rec) == 1 and not rec[0].strip(_BLANKS) and ncol > 1):
                 blank = line if blank is None else blank
                 continue
             if blank is not None:
@@ -476,19 +594,23 @@ def read_log(path: str | os.PathLike, min_duration_s: float = 1.0) -> RideLog:
             if len(rec) != ncol:
                 col = names[len(rec)] if len(rec) < ncol else None
                 raise LogFormatError(path, line, col, f"the row has {len(rec)} fields, the header has {ncol}")
-            try:
+            try:  # fast path: plain ASCII numbers everywhere, no dropout, within bounds
                 vals = [float(c) for c in rec]
-                bad = not math.isfinite(sum(vals))  # NaN, inf or (rarely) overflow
+                bad = (text_cols or _NOT_PLAIN.search("".join(rec)) is not None
+                       or not all(lo[j] <= v <= hi[j] for j, v in enumerate(vals)))  # NaN fails too
             except (ValueError, OverflowError):
                 vals, bad = [], True
-            if bad:  # find the first offending cell, left to right; keep dropouts
+            if bad:  # cell by cell: the first offending cell of a known column, left to right
                 vals = []
-                for name, cell in zip(names, rec):
+                for j, (name, cell) in enumerate(zip(names, rec)):
                     err = _cell_error(path, line, name, cell)
+                    if err is not None and not known[j]:
+                        text_cols.add(j)
+                        err = None
                     if err is not None:
                         raise err
-                    s = cell.strip()
-                    vals.append(float(s) if s else nan)
+                    s = cell.strip(_BLANKS)
+                    vals.append(nan if (not s or j in text_cols) else float(s))
             rows.append(vals)
             lines.append(line)
     except csv.Error as e:
@@ -507,13 +629,43 @@ def read_log(path: str | os.PathLike, min_duration_s: float = 1.0) -> RideLog:
 
     meta: dict = {}
     sidecar = _sidecar_path(path)
+    if sidecar.exists() and not sidecar.is_file():
+        raise LogFormatError(sidecar, None, None, "the sidecar is not a regular file (a directory?); "
+                                                  "it must be the log's JSON metadata or absent")
     if sidecar.is_file():
         meta, mtext = _read_sidecar(sidecar)
         rate = _rate_problem(meta, t)
         if rate is not None:
             raise LogFormatError(sidecar, _line_of_key(mtext, "sample_rate_hz"), "sample_rate_hz", rate)
-    columns = {name: np.ascontiguousarray(data[:, j]) for j, name in enumerate(names)}
-    return RideLog(t=columns["t"], columns=columns, meta=meta, path=path)
+    columns = {name: np.ascontiguousarray(data[:, j]) for j, name in enumerate(names) if j not in text_cols}
+    return RideLog(t=columns["t"], columns=columns, meta=meta, path=path,
+                   ignored_columns=tuple(names[j] for j in sorted(text_cols)), lines=tuple(lines))
+
+
+def check_against_vehicle(log: RideLog, vehicle: Any) -> None:
+    """Refuse a log whose steer angle goes beyond the vehicle's steering lock.
+
+    ``|delta| <= vehicle.steer_lock`` [rad] at every present sample
+    (:attr:`ptw_env.vehicle.Vehicle.steer_lock`, ``[limits] steer_lock`` of a vehicle
+    file; ``pi/2`` when the file gives none). The speed range is not checked here:
+    each command states what it does with samples outside it (``diagnose`` leaves
+    those windows out and says so).
+
+    Raises
+    ------
+    LogFormatError
+        Naming the file, the line and column ``delta``, the value in rad and deg, and the lock.
+    """
+    lock = float(vehicle.steer_lock)
+    d = np.asarray(log.delta, dtype=float)
+    over = np.flatnonzero(np.abs(np.nan_to_num(d)) > lock)
+    if over.size:
+        k = int(over[0])
+        line = log.lines[k] if len(log.lines) == len(log.t) else None
+        raise LogFormatError(log.path or "log", line, "delta",
+                             f"{d[k]:g} rad ({math.degrees(d[k]):.1f} deg) at t = {log.t[k]:.3f} s is beyond "
+                             f"{vehicle.name}'s steering lock {lock:.4g} rad ({math.degrees(lock):.1f} deg); "
+                             f"{over.size} such sample(s)")
 
 
 # --------------------------------------------------------------------------- writer
@@ -532,18 +684,6 @@ def _json_default(o: Any) -> Any:
 def _fmt(values: np.ndarray) -> list[str]:
     # repr of a Python float is the shortest string that reads back to the same double
     return ["" if v != v else repr(v) for v in values.tolist()]
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def write_log(
@@ -626,9 +766,9 @@ def write_log(
     order = [c for c in KNOWN_COLUMNS if c in log.columns] + [c for c in log.columns if c not in KNOWN_COLUMNS]
     cells = [_fmt(log.columns[c]) for c in order]
     body = "\n".join(",".join(r) for r in zip(*cells))
-    _atomic_write(path, ",".join(order) + "\n" + body + ("\n" if body else ""))
+    atomic_write_text(path, ",".join(order) + "\n" + body + ("\n" if body else ""))
     if meta_text is not None:
-        _atomic_write(sidecar, meta_text)
+        atomic_write_text(sidecar, meta_text)
     elif overwrite and sidecar.exists():
         sidecar.unlink()
     return path

@@ -359,6 +359,7 @@ def sharp_vehicle(
     vmin: float,
     vmax: float,
     provenance: Mapping[str, str] | None = None,
+    steer_lock: float = math.pi / 2,
 ) -> Vehicle:
     """The :class:`~ptw_env.vehicle.Vehicle` of a Sharp (1971) parameter set (Table V formulas).
 
@@ -393,7 +394,7 @@ def sharp_vehicle(
     prov.update(dict(provenance or {}))
     prov.setdefault("parameters", ", ".join(f"{k} = {v:.6g}" for k, v in asdict(params).items()))
     return Vehicle(name=name, E=E, A0=A0, A1=A1, B=B, mass=params.mass, tires=params.tire_parameters(),
-                   vmin=float(vmin), vmax=float(vmax), provenance=prov)
+                   vmin=float(vmin), vmax=float(vmax), provenance=prov, steer_lock=float(steer_lock))
 
 
 __all__ = ["LOAD_TOLERANCE", "ParameterSpec", "SPECS", "SharpParameterError", "SharpParameters", "rule_violation",

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -121,6 +122,13 @@ class Vehicle:
         episode outside it).
     provenance : Mapping[str, str]
         Where each group of numbers comes from.
+    steer_lock : float
+        Largest steer angle |delta| [rad] the vehicle's steering stops allow, in
+        ``(0, pi/2]``; a ride log steering beyond it is refused
+        (:func:`ptw_env.logs.check_against_vehicle`). Default ``pi/2``: the geometric
+        bound of any front wheel (beyond it the wheel would face backwards), not a
+        number of any vehicle; a vehicle file gives its own in ``[limits] steer_lock``.
+        Not part of the model (it changes no equation) nor of :meth:`identity`'s hash.
     """
 
     name: str
@@ -133,6 +141,7 @@ class Vehicle:
     vmin: float = 3.0
     vmax: float = 40.0
     provenance: Mapping[str, str] = field(default_factory=dict)
+    steer_lock: float = math.pi / 2
 
     def __post_init__(self) -> None:
         for nm, shape in (("E", (8, 8)), ("A0", (8, 8)), ("A1", (8, 8)), ("B", (8,))):
@@ -144,6 +153,8 @@ class Vehicle:
             object.__setattr__(self, nm, _frozen(a))
         if not (0 < self.vmin < self.vmax):
             raise ValueError(f"Vehicle speed range must satisfy 0 < vmin < vmax, got [{self.vmin}, {self.vmax}]")
+        if not (isinstance(self.steer_lock, (int, float)) and 0 < self.steer_lock <= math.pi / 2):
+            raise ValueError(f"Vehicle.steer_lock must be an angle in (0, pi/2] rad, got {self.steer_lock!r}")
         if np.linalg.cond(self.E) > 1e10:
             raise ValueError("Vehicle.E is singular (or nearly): the mass matrix must be invertible")
         object.__setattr__(self, "provenance", MappingProxyType(dict(self.provenance)))
@@ -153,7 +164,7 @@ class Vehicle:
         return (
             Vehicle,
             (self.name, self.E, self.A0, self.A1, self.B, self.mass, self.tires, self.vmin, self.vmax,
-             dict(self.provenance)),
+             dict(self.provenance), self.steer_lock),
         )
 
     @functools.cached_property

@@ -30,7 +30,10 @@ Sections and their keys (which keys a layout needs: :data:`ptw_env.sharp_geometr
 * ``[inertias]``: ``I_fx, I_fz, I_rx, I_rz, C_rxz, I_xx, I_zz, C_xz``;
 * ``[wheels]``: ``R_f, R_r, i_fy, i_ry``;
 * ``[steering]``: ``K``;
-* ``[tires]``: ``C_f1, C_f2, C_r1, C_r2, sigma_f, sigma_r`` and optionally ``Z_f``.
+* ``[tires]``: ``C_f1, C_f2, C_r1, C_r2, sigma_f, sigma_r`` and optionally ``Z_f``;
+* ``[limits]`` (optional): ``steer_lock`` [rad] in ``(0, pi/2]``, the steering stops;
+  a ride log steering beyond it is refused (:func:`ptw_env.logs.check_against_vehicle`;
+  without it, only the geometric bound ``pi/2``).
 
 Each value is ``{ value = <number>, unit = "<unit>", source = "<text>" }``.
 Units are SI and must be written as expected (:data:`UNITS`; spaces, ``*``,
@@ -85,7 +88,11 @@ SECTIONS: dict[str, tuple[str, ...]] = {
     "wheels": ("R_f", "R_r", "i_fy", "i_ry"),
     "steering": ("K",),
     "tires": ("C_f1", "C_f2", "C_r1", "C_r2", "sigma_f", "sigma_r", "Z_f"),
+    "limits": ("steer_lock",),
 }
+#: Keys that are not Table V parameters: (unit, meaning); checked here, not by ptw_env.sharp.SPECS.
+_OWN_KEYS = {"vmin": ("m/s", "a forward speed"), "vmax": ("m/s", "a forward speed"),
+             "steer_lock": ("rad", "the steering lock, in (0, pi/2]")}
 _SECTION_OF = {k: sec for sec, keys in SECTIONS.items() for k in keys}
 _TOP_LEVEL = ("name", "description", "layout", "references")
 _ENTRY_FIELDS = ("value", "unit", "source")
@@ -148,7 +155,7 @@ class _Reader:
 
     def entry(self, section: str, key: str, raw: Any) -> tuple[float, str]:
         where = f"[{section}] {key}"
-        want = spec(key).unit if key not in ("vmin", "vmax") else "m/s"
+        want = _OWN_KEYS[key][0] if key in _OWN_KEYS else spec(key).unit
         if not isinstance(raw, dict):
             raise self.fail(where, f"must be a table {{ value = ..., unit = \"{want}\", source = \"...\" }}, got {raw!r}")
         extra = [f for f in raw if f not in _ENTRY_FIELDS]
@@ -169,8 +176,11 @@ class _Reader:
             factor = _CONVERSIONS.get((_norm_unit(unit), _norm_unit(want)))
             hint = f": {value:g} {unit} = {value * factor:.6g} {want}" if factor and math.isfinite(value) else ""
             raise self.fail(where, f"unit {unit!r} given, {want!r} expected (SI units only; nothing is converted){hint}")
-        rule, meaning = ("positive", "a forward speed") if key in ("vmin", "vmax") else (spec(key).rule, spec(key).meaning)
+        rule, meaning = ("positive", _OWN_KEYS[key][1]) if key in _OWN_KEYS else (spec(key).rule, spec(key).meaning)
         why = rule_violation(float(value), rule)
+        if not why and key == "steer_lock" and value > math.pi / 2:
+            hint = f" (it looks like degrees: {value:g} deg = {math.radians(value):.4g} rad)" if value < 90.0 else ""
+            why = f"must be at most pi/2 = {math.pi / 2:.4f}, got {value:g}{hint}"
         if why:
             raise self.fail(where, f"{why} ({meaning}, in {want})")
         return float(value), f"{value:g} {want}: {source.strip()}"
@@ -206,7 +216,7 @@ class _Reader:
                     raise self.fail(f"[{section}] {key}", f"unknown key{_suggest(key, list(_SECTION_OF))}; "
                                                           f"[{section}] takes {', '.join(SECTIONS[section])}")
                 values[key], prov[key] = self.entry(section, key, raw)
-        missing, conflicting = layout_problems(layout, set(values) - {"vmin", "vmax"})
+        missing, conflicting = layout_problems(layout, set(values) - set(_OWN_KEYS))
         missing = [k for k in ("vmin", "vmax") if k not in values] + missing
         problems = []
         if missing:
@@ -252,7 +262,7 @@ def _resolve(name_or_path: str | Path) -> Path | None:
 def _load(path: Path) -> tuple[SharpParameters, str, dict[str, float], dict[str, str]]:
     name, layout, values, prov, description = _Reader(path, _read_toml(path)).read()
     try:
-        params = sharp_parameters(layout, {k: v for k, v in values.items() if k not in ("vmin", "vmax")})
+        params = sharp_parameters(layout, {k: v for k, v in values.items() if k not in _OWN_KEYS})
     except SharpParameterError as exc:
         raise VehicleFileError(f"{path}: {exc}") from None
     prov = {"file": str(path), "layout": layout, **({"description": description} if description else {}), **prov}
@@ -301,15 +311,35 @@ def load_vehicle(name_or_path: str | Path) -> Vehicle:
     if path is None:
         return REFERENCE_SCOOTER
     params, name, values, prov = _load(path)
-    return sharp_vehicle(params, name=name, vmin=values["vmin"], vmax=values["vmax"], provenance=prov)
+    return sharp_vehicle(params, name=name, vmin=values["vmin"], vmax=values["vmax"], provenance=prov,
+                         steer_lock=values.get("steer_lock", math.pi / 2))
+
+
+def _normalised(name: str) -> str:
+    key = _ALIASES.get(name, name)
+    return key.strip().lower().replace("_", "-").replace(" ", "-")
+
+
+def _same_vehicle(vname: Any, vehicle: Vehicle, path: Path) -> bool:
+    """Whether a sidecar's ``vehicle`` names the vehicle its ``vehicle_file`` holds (by name or path)."""
+    if not isinstance(vname, str) or not vname:
+        return False
+    if _normalised(vname) == _normalised(vehicle.name):
+        return True
+    cand = Path(vname)
+    try:
+        return cand.is_file() and cand.resolve() == path.resolve()
+    except OSError:
+        return False
 
 
 def vehicle_of_log(meta: Mapping[str, Any], log_path: str | Path | None = None) -> Vehicle | None:
     """The vehicle a ride log's sidecar names (logs.md ``vehicle``, optional ``vehicle_file``).
 
     ``vehicle_file`` wins when it can be found: as written, relative to the log's folder, or its
-    file name beside the log (sidecars of data shipped in a folder with its vehicle file);
-    else ``vehicle`` as a preset name or a file. ``None`` when the sidecar names no vehicle.
+    file name beside the log (sidecars of data shipped in a folder with its vehicle file),
+    and ``vehicle``, when also given, must name the same vehicle (its ``name``, case, ``_``
+    and ``-`` aside, or the same file); else ``vehicle`` as a preset name or a file. ``None`` when the sidecar names no vehicle.
 
     Raises
     ------
@@ -325,7 +355,12 @@ def vehicle_of_log(meta: Mapping[str, Any], log_path: str | Path | None = None) 
         base = Path(log_path).parent if log_path is not None else Path(".")
         for cand in (Path(vfile), base / vfile, base / Path(vfile).name):
             if cand.is_file():
-                return load_vehicle(cand)
+                vehicle = load_vehicle(cand)
+                if vname is not None and not _same_vehicle(vname, vehicle, cand):
+                    raise VehicleFileError(
+                        f"{where}: 'vehicle' = {vname!r} but 'vehicle_file' = {vfile!r} is the vehicle "
+                        f"{vehicle.name!r} ({cand}): the sidecar names two different vehicles")
+                return vehicle
     if vname is None:
         return None
     if not isinstance(vname, str) or not vname:

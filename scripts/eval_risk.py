@@ -33,7 +33,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 from tqdm import tqdm
 
-from ptw_env.cli import _bank
+from ptw_env.cli import road_bank
 
 from assist.risk.evaluation import KINDS, WARNABLE_S, estimator_figures, make_case, run_case
 from assist.risk.offline import plot_risk, replay
@@ -256,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
         _ROAD_BANK = None if a.road_bank.lower() == "none" else "auto"
     else:
         try:
-            _ROAD_BANK = _bank(a.road_bank)  # the CLI's check: a finite angle in rad, |bank| < 0.5
+            _ROAD_BANK = road_bank(a.road_bank)  # the CLI's check: a finite angle in rad, |bank| < 0.5
         except argparse.ArgumentTypeError as e:
             p.error(f"--road-bank: 'auto', 'none' or {e}")
     kinds = [k for k in a.kinds.split(",") if k]

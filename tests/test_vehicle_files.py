@@ -166,3 +166,40 @@ def test_modes_cli_bad_vehicle_one_line_exit_2(tmp_path, capsys, vehicle, speeds
     assert rc == 2 and len(err.splitlines()) == 1 and err.startswith("ptw-assist modes: error:")
     for w in words:
         assert w in err, err
+
+
+# ----------------------------------------------------------------------------- steering lock, sidecars
+def test_steer_lock_from_the_file_in_radians_only(tmp_path):
+    import math
+
+    assert load_vehicle("sharp1971").steer_lock == math.pi / 2  # no [limits]: the geometric bound
+    ok = _write(tmp_path, SHARP_TOML + '\n[limits]\nsteer_lock = { value = 0.6, unit = "rad", source = "test" }\n')
+    v = load_vehicle(ok)
+    assert v.steer_lock == 0.6 and v.identity()["model_sha256"] == load_vehicle("sharp1971").identity()["model_sha256"]
+    deg = _write(tmp_path, SHARP_TOML + '\n[limits]\nsteer_lock = { value = 35, unit = "rad", source = "x" }\n', "d.toml")
+    with pytest.raises(VehicleFileError, match=r"\[limits\] steer_lock.*at most pi/2.*35 deg = 0.6109 rad"):
+        load_vehicle(deg)
+
+
+def test_a_sidecar_naming_two_different_vehicles_is_refused(tmp_path):
+    from ptw_env.vehicle_files import vehicle_of_log
+
+    path = _write(tmp_path, SHARP_TOML)
+    log = tmp_path / "ride.csv"
+    assert vehicle_of_log({"vehicle": "sharp1971", "vehicle_file": str(path)}, log).name == "sharp1971"
+    assert vehicle_of_log({"vehicle": str(path), "vehicle_file": "bike.toml"}, log).name == "sharp1971"
+    with pytest.raises(VehicleFileError, match=r"'vehicle' = 'no-such-bike'.*'sharp1971'.*two different vehicles"):
+        vehicle_of_log({"vehicle": "no-such-bike", "vehicle_file": str(path)}, log)
+    rb = Path(__file__).resolve().parents[2] / "shared" / "data" / "robot_bicycle"
+    if rb.is_dir():  # the shipped sidecars: 'robot_bicycle' names the file's vehicle 'robot_bicycle'
+        meta = json.loads(next(rb.glob("*.json")).read_text())
+        assert vehicle_of_log(meta, next(rb.glob("*.csv"))).name == "robot_bicycle"
+
+
+@pytest.mark.parametrize("name", vehicle_names())
+def test_modes_default_speeds_span_the_vehicles_own_range(tmp_path, name):
+    js = tmp_path / "m.json"
+    v = load_vehicle(name)
+    assert main(["modes", "--vehicle", name, "--json", str(js)]) == 0
+    sp = json.loads(js.read_text())["speeds"]
+    assert len(sp) == 5 and sp[0] == pytest.approx(v.vmin) and sp[-1] == pytest.approx(v.vmax)

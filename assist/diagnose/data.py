@@ -174,8 +174,13 @@ def make_windows(log: RideLog, window_s: float, lead_s: float, vmin: float, vmax
     channels = tuple(c for c in CHANNELS if log.has(c))
     Yall = np.column_stack([log[c] for c in channels])
     tau = log["tau"]
-    speed = reconstruct_speed(log.t, log["vx"])
+    raw_v = log["vx"]
+    speed = reconstruct_speed(log.t, raw_v)
+    # a measured speed outside the range (standstill, a sensor reading 0 or less) is trimmed, never smoothed over
+    raw_out = np.isfinite(raw_v) & ((raw_v < vmin) | (raw_v > vmax))
     starts, notes = [], []
+    if getattr(log, "ignored_columns", ()):
+        notes.append(f"column(s) {', '.join(log.ignored_columns)} ignored: extra columns holding text (logs.md)")
     bad_tau = bad_v = 0
     for s in range(0, K - lead - L + 1, L):
         sl = slice(s, s + lead + L)
@@ -183,14 +188,17 @@ def make_windows(log: RideLog, window_s: float, lead_s: float, vmin: float, vmax
             bad_tau += 1
             continue
         v = speed[sl]
-        if v.min() < vmin or v.max() > vmax:
+        if v.min() < vmin or v.max() > vmax or raw_out[sl].any():
             bad_v += 1
             continue
         starts.append(s)
     if bad_tau:
         notes.append(f"{bad_tau} window(s) left out: dropouts in column 'tau'")
     if bad_v:
-        notes.append(f"{bad_v} window(s) left out: speed outside the model's range [{vmin}, {vmax}] m/s")
+        k = np.flatnonzero(raw_out)
+        first = (f"; measured vx = {raw_v[k[0]]:g} m/s at sample {k[0]} (t = {log.t[k[0]]:g} s), "
+                 f"{k.size} such sample(s)") if k.size else ""
+        notes.append(f"{bad_v} window(s) left out: speed outside the model's range [{vmin}, {vmax}] m/s{first}")
     if len(starts) < MIN_WINDOWS:
         need = MIN_WINDOWS * L + lead
         raise DiagnoseInputError(

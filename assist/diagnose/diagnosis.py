@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from ptw_env.logs import RideLog, read_log
+from ptw_env.logs import LogFormatError, RideLog, check_against_vehicle, read_log
 from ptw_env.sensors import DEFAULT_NOISE_STD
 from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
 from ptw_env.vehicle_files import VehicleFileError, vehicle_of_log
@@ -168,6 +168,10 @@ def diagnose(
             vehicle = vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER
         except VehicleFileError as exc:
             raise DiagnoseInputError(str(exc)) from None
+    try:
+        check_against_vehicle(log, vehicle)
+    except LogFormatError as exc:
+        raise DiagnoseInputError(str(exc)) from None
     if window_s is None:
         window_s = auto_window(log.duration_s, lead_s)
     win, notes = make_windows(log, window_s, lead_s, vehicle.vmin, vehicle.vmax, source=name)

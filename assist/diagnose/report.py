@@ -151,6 +151,7 @@ class DiagnosisReport:
         top = [h for h in self.hypotheses[:4]]
         lines.append("best hypotheses: " + "; ".join(
             f"{'+'.join(c['cause'] for c in h['causes'])} gain {h['gain']:.3f} score {h['score']:.3g}" for h in top))
+        lines += [f"note: {n}" for n in self.method.get("notes", [])]
         return "\n".join(lines)
 
     # -- figure --------------------------------------------------------------------------

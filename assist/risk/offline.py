@@ -152,8 +152,14 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
         raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: tau is missing at t = {t[bad[0]]:.3f} s "
                            "(the rider torque must be known at every sample)")
     ok = np.isfinite(vx)
-    if not ok.any() or np.any(vx[ok] <= 0):
-        raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: vx must be positive (m/s) where present")
+    if not ok.any():
+        raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: vx is missing at every sample")
+    nonpos = np.flatnonzero(ok & (vx <= 0))
+    if nonpos.size:
+        k = int(nonpos[0])
+        raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: vx must be positive (m/s) where present; "
+                           f"vx = {vx[k]:g} m/s at sample {k} (t = {t[k]:.3f} s, line {k + 2} of a file with one "
+                           f"header line), {nonpos.size} such sample(s)")
     vfill = np.interp(t, t[ok], vx[ok])
     kmap = None
     if use_kappa and "kappa" in c:
