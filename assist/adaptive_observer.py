@@ -120,7 +120,7 @@ from numba import njit
 
 from ptw_env.dynamics import compile_plant
 from ptw_env.integrate import substeps_for
-from ptw_env.kernels import _deriv, _fold
+from ptw_env.kernels import deriv, fold_vx
 from ptw_env.vehicle import PHI_DOT, R, DELTA_DOT
 
 from .adaptive_design import AdaptiveObserverDesign, default_design
@@ -141,7 +141,7 @@ LAW_NONE, LAW_PAPER, LAW_SENSITIVITY = 0, 1, 2
 
 @njit(cache=True, inline="always")
 def _obs_deriv(x, M, c, g, vxd, inv_sigma, fmax, bank, th, H0, H1, Lb, C, y0, y1, wm, a, out, e5):
-    _deriv(x, M, c, g, vxd, inv_sigma, fmax, bank, out)
+    deriv(x, M, c, g, vxd, inv_sigma, fmax, bank, out)
     # D chi(x, vx) Theta
     for j in range(4):
         acc = 0.0
@@ -218,7 +218,7 @@ def _observer_step(xh, th, f, mem, yprev, U, Gam, y_in, tau, vx_in, W, inv_sigma
         M = np.empty((8, 8))
         c = np.empty(8)
         g = np.empty((8, 2))
-        _fold(W, vxd, mem[0], 0.0, M, c, g)
+        fold_vx(W, vxd, mem[0], 0.0, M, c, g)
         k1 = np.empty(8)
         k2 = np.empty(8)
         k3 = np.empty(8)

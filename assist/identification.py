@@ -109,7 +109,7 @@ from scipy.signal import butter, lfilter
 
 from ptw_env.dynamics import compile_plant
 from ptw_env.integrate import substeps_for
-from ptw_env.kernels import _deriv, _fold
+from ptw_env.kernels import deriv, fold_vx
 from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
 from ptw_env.vehicle import FYF, FYR, R, VY
 
@@ -402,7 +402,7 @@ class InversionLS:
 # --------------------------------------------------------------------------- joint EKF
 @njit(cache=True, inline="always")
 def _f_aug(x, s, M, c, g, vx, inv_sigma, fmax, bank, H0, H1, c0, out):
-    _deriv(x, M, c, g, vx, inv_sigma, fmax, bank, out)
+    deriv(x, M, c, g, vx, inv_sigma, fmax, bank, out)
     for j in range(4):
         acc = 0.0
         for i in range(8):
@@ -461,7 +461,7 @@ def _ekf_run(Zout, Pdiag, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, nsub, 
             Pdiag[k, i] = P[i, i]
         # ---- prediction to t_{k+1}
         vx = VX[k]
-        _fold(W, vx, TAU[k], 0.0, M, c, g)
+        fold_vx(W, vx, TAU[k], 0.0, M, c, g)
         x = z[:8].copy()
         s = z[8:].copy()
         # Jacobian at the current estimate

@@ -17,7 +17,7 @@ evaluated at every RK4 stage besides the sines, is skipped for plants that do no
 
 Over one control period ``vx`` and ``tau`` are held (zero-order hold, as in
 the reference ride logs), so each period first folds them into an 8 x 8
-matrix ``M`` and a vector ``c`` (:func:`_fold`) and the substeps only pay for
+matrix ``M`` and a vector ``c`` (:func:`fold_vx`) and the substeps only pay for
 ``M x``, two sines and the tire saturation.
 """
 
@@ -32,7 +32,10 @@ COULOMB_WIDTH = 0.02
 
 
 @njit(cache=True, inline="always")
-def _fold(W, vx, tau, d, M, c, g):
+def fold_vx(W, vx, tau, d, M, c, g):
+    """Fold the held speed ``vx`` [m/s], torque ``tau`` [N m] and roll moment ``d`` [N m] into one period's
+    ``M`` (8 x 8, ``M_ij = W_ij + vx W_i,8+j + W_i,16+j / vx``), ``c`` (constant part) and ``g`` (coefficients of
+    ``sin(phi - bank)`` and ``sin(delta)``), written in place (module docstring: layout of ``W``)."""
     for i in range(8):
         for j in range(8):
             M[i, j] = W[i, j] + vx * W[i, 8 + j] + W[i, 16 + j] / vx
@@ -57,7 +60,10 @@ def _add_coulomb(x, W, out):
 
 
 @njit(cache=True, inline="always")
-def _deriv(x, M, c, g, vx, inv_sigma, fmax, bank, out):
+def deriv(x, M, c, g, vx, inv_sigma, fmax, bank, out):
+    """``out = x'`` of one vehicle for a folded period (:func:`fold_vx`): ``M x + c + g [sin(phi - bank),
+    sin(delta)]``, then the relaxation rows ``F_k' = vx / sigma_k (F_ss,k - F_k)`` with the saturated steady
+    force ``F_ss = fmax tanh(F_lin / fmax)`` (``F_lin`` when ``fmax`` is infinite); model.md rows 7-8."""
     s1 = np.sin(x[0] - bank)
     s2 = np.sin(x[1])
     for i in range(8):
@@ -85,24 +91,24 @@ def rhs_into(x, tau, vx, W, inv_sigma, fmax, bank, out):
     K = W.shape[0]
     for n in range(x.shape[0]):
         k = n if K > 1 else n - n
-        _fold(W[k], vx[n], tau[n], 0.0, M, c, g)
-        _deriv(x[n], M, c, g, vx[n], inv_sigma[k], fmax[k], bank[k], out[n])
+        fold_vx(W[k], vx[n], tau[n], 0.0, M, c, g)
+        deriv(x[n], M, c, g, vx[n], inv_sigma[k], fmax[k], bank[k], out[n])
         _add_coulomb(x[n], W[k], out[n])
 
 
 @njit(cache=True, inline="always")
 def _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, tmp):
     for _ in range(nsub):
-        _deriv(x, M, c, g, vx, inv_sigma, fmax, bank, k1)
+        deriv(x, M, c, g, vx, inv_sigma, fmax, bank, k1)
         for i in range(8):
             tmp[i] = x[i] + 0.5 * h * k1[i]
-        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k2)
+        deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k2)
         for i in range(8):
             tmp[i] = x[i] + 0.5 * h * k2[i]
-        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k3)
+        deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k3)
         for i in range(8):
             tmp[i] = x[i] + h * k3[i]
-        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k4)
+        deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k4)
         for i in range(8):
             x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
@@ -111,19 +117,19 @@ def _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, 
 def _rk4_period_c(x, M, c, g, W, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3, k4, tmp):
     """:func:`_rk4_period` with the Coulomb column of ``W`` evaluated at every stage."""
     for _ in range(nsub):
-        _deriv(x, M, c, g, vx, inv_sigma, fmax, bank, k1)
+        deriv(x, M, c, g, vx, inv_sigma, fmax, bank, k1)
         _add_coulomb(x, W, k1)
         for i in range(8):
             tmp[i] = x[i] + 0.5 * h * k1[i]
-        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k2)
+        deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k2)
         _add_coulomb(tmp, W, k2)
         for i in range(8):
             tmp[i] = x[i] + 0.5 * h * k2[i]
-        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k3)
+        deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k3)
         _add_coulomb(tmp, W, k3)
         for i in range(8):
             tmp[i] = x[i] + h * k3[i]
-        _deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k4)
+        deriv(tmp, M, c, g, vx, inv_sigma, fmax, bank, k4)
         _add_coulomb(tmp, W, k4)
         for i in range(8):
             x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
@@ -142,7 +148,7 @@ def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
     k3 = np.empty(8)
     k4 = np.empty(8)
     tmp = np.empty(8)
-    _fold(W, vx, tau, d, M, c, g)
+    fold_vx(W, vx, tau, d, M, c, g)
     if _has_coulomb(W):
         _rk4_period_c(x, M, c, g, W, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
     else:
@@ -174,7 +180,7 @@ def simulate_batch(x0, tau, vx, W, inv_sigma, fmax, bank, dt, nsub, out):
         out[n, 0] = x
         coul = _has_coulomb(W[k])
         for t in range(T):
-            _fold(W[k], vx[n, t], tau[n, t], 0.0, M, c, g)
+            fold_vx(W[k], vx[n, t], tau[n, t], 0.0, M, c, g)
             if coul:
                 _rk4_period_c(x, M, c, g, W[k], vx[n, t], inv_sigma[k], fmax[k], bank[k], dt / nsub, nsub,
                               k1, k2, k3, k4, tmp)

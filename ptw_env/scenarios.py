@@ -189,7 +189,7 @@ def _graph_path(x: np.ndarray, y: np.ndarray, dy: np.ndarray, d2y: np.ndarray) -
 
 
 @dataclass(frozen=True)
-class _Seg:
+class Segment:
     """Path segment: a straight (``radius = inf``) or a turn by ``angle`` [rad] (signed, + toward +y)
     on ``radius`` [m] with cosine curvature ramps of ``ramp`` [m] at entry and exit; ``vcap`` [m/s]
     caps the speed on the segment."""
@@ -201,7 +201,7 @@ class _Seg:
     vcap: float = math.inf
 
 
-def _segments_to_grid(segs: list[_Seg]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def segments_to_grid(segs: list[Segment]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Path grid ``(s, kappa, vcap)`` every :data:`_DS` metres.
 
     A turn's curvature rises as a cosine blend over ``ramp``, holds ``1/R``, falls back over
@@ -233,7 +233,7 @@ def _segments_to_grid(segs: list[_Seg]) -> tuple[np.ndarray, np.ndarray, np.ndar
     return np.concatenate(ss), np.concatenate(ks), np.concatenate(vs)
 
 
-def _speed_plan(s: np.ndarray, kappa: np.ndarray, vcap: np.ndarray, lateral_g: float, accel: float,
+def speed_plan(s: np.ndarray, kappa: np.ndarray, vcap: np.ndarray, lateral_g: float, accel: float,
                 brake: float, smooth_m: float) -> np.ndarray:
     """Speed along the path [m/s]: the fastest ride within ``|vx^2 kappa| <= lateral_g g``,
     the caps, acceleration ``<= accel`` and deceleration ``<= brake`` [m/s^2].
@@ -253,7 +253,7 @@ def _speed_plan(s: np.ndarray, kappa: np.ndarray, vcap: np.ndarray, lateral_g: f
     return np.sqrt(np.convolve(padded, win, mode="valid"))
 
 
-def _space_based(t: np.ndarray, s_grid: np.ndarray, v_grid: np.ndarray, k_grid: np.ndarray,
+def space_based(t: np.ndarray, s_grid: np.ndarray, v_grid: np.ndarray, k_grid: np.ndarray,
                  name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(vx, s, kappa)`` at times ``t`` for a speed given along the path: ``t(s) = int ds / v``."""
     t_grid = _cumtrapz(1.0 / v_grid, s_grid)
@@ -275,7 +275,8 @@ def _num(obj: Any, field: str) -> float:
     return float(v)
 
 
-def _positive(obj: Any, *fields: str) -> None:
+def require_positive(obj: Any, *fields: str) -> None:
+    """Raise :class:`ScenarioError` naming ``obj.name`` and the field unless each of ``fields`` of ``obj`` is > 0."""
     for f in fields:
         if _num(obj, f) <= 0:
             raise ScenarioError(f"{obj.name}: {f} must be > 0, got {getattr(obj, f)!r}")
@@ -313,7 +314,7 @@ class Scenario:
     duration_s: float = 30.0
 
     def __post_init__(self) -> None:
-        _positive(self, "duration_s")
+        require_positive(self, "duration_s")
         self._validate()
         need = self._min_duration()
         if self.duration_s < need - 1e-9:
@@ -395,7 +396,7 @@ class DoubleLaneChange(Scenario):
     def _validate(self) -> None:
         _speed_kmh(self, "speed_kmh")
         _num(self, "offset_m")
-        _positive(self, "run_in_s", "transition_s", "hold_s")
+        require_positive(self, "run_in_s", "transition_s", "hold_s")
 
     def _min_duration(self) -> float:
         return self.run_in_s + 2 * self.transition_s + self.hold_s
@@ -461,7 +462,7 @@ class ConstantRadius(Scenario):
     settle_s: float = 2.0
 
     def _validate(self) -> None:
-        _positive(self, "radius_m", "accel_mps2", "run_in_s", "entry_s", "settle_s")
+        require_positive(self, "radius_m", "accel_mps2", "run_in_s", "entry_s", "settle_s")
         _speed_kmh(self, "v_start_kmh", "v_end_kmh")
         vmax = _kmh(max(self.v_start_kmh, self.v_end_kmh))
         phi = math.atan(vmax**2 / (self.radius_m * G))
@@ -534,7 +535,7 @@ class Slalom(Scenario):
 
     def _validate(self) -> None:
         _speed_kmh(self, "speed_kmh")
-        _positive(self, "cone_spacing_m", "amplitude_m", "run_in_s")
+        require_positive(self, "cone_spacing_m", "amplitude_m", "run_in_s")
         if isinstance(self.n_cones, bool) or not isinstance(self.n_cones, (int, np.integer)) or self.n_cones < 1:
             raise ScenarioError(f"{self.name}: n_cones must be an integer >= 1, got {self.n_cones!r}")
 
@@ -628,26 +629,26 @@ class Handling(Scenario):
     def _validate(self) -> None:
         _speed_kmh(self, "v_max_kmh")
         _lateral_g(self)
-        _positive(self, "accel_mps2", "brake_mps2", "ramp_s")
+        require_positive(self, "accel_mps2", "brake_mps2", "ramp_s")
 
-    def _lap(self) -> list[_Seg]:
+    def _lap(self) -> list[Segment]:
         """One closed lap; the two free straights solve ``end = start`` (a 2 x 2 linear system)."""
         vmax = _kmh(self.v_max_kmh)
 
-        def segs(l1: float, l2: float) -> list[_Seg]:
+        def segs(l1: float, l2: float) -> list[Segment]:
             free = iter((l1, l2))
             out = []
             for kind, val in _TRACK:
                 if kind == "straight":
-                    out.append(_Seg(length=next(free) if val is None else val, vcap=vmax))
+                    out.append(Segment(length=next(free) if val is None else val, vcap=vmax))
                 else:
                     ang, R = val
                     vt = min(vmax, math.sqrt(self.lateral_g * G * R))
-                    out.append(_Seg(angle=math.radians(ang), radius=R, ramp=vt * self.ramp_s, vcap=vmax))
+                    out.append(Segment(angle=math.radians(ang), radius=R, ramp=vt * self.ramp_s, vcap=vmax))
             return out
 
         def end(l1: float, l2: float) -> np.ndarray:
-            s, k, _ = _segments_to_grid(segs(l1, l2) + [_Seg(length=_DS)])
+            s, k, _ = segments_to_grid(segs(l1, l2) + [Segment(length=_DS)])
             psi = _cumtrapz(k, s)
             return np.array([_cumtrapz(np.cos(psi), s)[-1], _cumtrapz(np.sin(psi), s)[-1]])
 
@@ -661,14 +662,14 @@ class Handling(Scenario):
 
     def _trajectory(self, t, rng):
         lap = self._lap()
-        s1, k1, c1 = _segments_to_grid(lap)
+        s1, k1, c1 = segments_to_grid(lap)
         lap_len = s1[-1] + _DS
         laps = int(math.ceil(_kmh(self.v_max_kmh) * t[-1] / lap_len)) + 2
         s = np.concatenate([s1 + i * lap_len for i in range(laps)])
         k, c = np.tile(k1, laps), np.tile(c1, laps)
-        v = _speed_plan(s, k, c, self.lateral_g, self.accel_mps2, self.brake_mps2, smooth_m=15.0)
+        v = speed_plan(s, k, c, self.lateral_g, self.accel_mps2, self.brake_mps2, smooth_m=15.0)
         keep = s >= lap_len  # drop the run-up lap
-        return _space_based(t, s[keep] - lap_len, v[keep], k[keep], self.name)
+        return space_based(t, s[keep] - lap_len, v[keep], k[keep], self.name)
 
 
 @dataclass(frozen=True)
@@ -726,23 +727,23 @@ class Urban(Scenario):
                 f"{self.name}: v_min_kmh ({self.v_min_kmh:g}) must be below v_max_kmh ({self.v_max_kmh:g})"
             )
         _lateral_g(self)
-        _positive(self, "accel_mps2", "brake_mps2", "ramp_s")
+        require_positive(self, "accel_mps2", "brake_mps2", "ramp_s")
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise ScenarioError(f"{self.name}: seed must be a non-negative integer, got {self.seed!r}")
 
-    def _segments(self, rng: np.random.Generator, length: float) -> list[_Seg]:
+    def _segments(self, rng: np.random.Generator, length: float) -> list[Segment]:
         vmin, vmax = _kmh(self.v_min_kmh), _kmh(self.v_max_kmh)
-        segs = [_Seg(length=60.0, vcap=vmax)]
+        segs = [Segment(length=60.0, vcap=vmax)]
         total, heading = 60.0, 0.0
         while total < length:
             L = rng.uniform(60.0, 250.0)
             cruise = rng.uniform(max(_kmh(50.0), vmin), vmax)
             if rng.random() < 0.3:  # slow down for traffic in the middle of the straight
                 slow = rng.uniform(vmin, max(vmin, _kmh(50.0)))
-                segs += [_Seg(length=L / 2, vcap=cruise), _Seg(length=10.0, vcap=slow), _Seg(length=L / 2, vcap=cruise)]
+                segs += [Segment(length=L / 2, vcap=cruise), Segment(length=10.0, vcap=slow), Segment(length=L / 2, vcap=cruise)]
                 L += 10.0
             else:
-                segs.append(_Seg(length=L, vcap=cruise))
+                segs.append(Segment(length=L, vcap=cruise))
             if rng.random() < 0.4:
                 R, ang = rng.uniform(18.0, 35.0), rng.uniform(70.0, 100.0)
             else:
@@ -751,17 +752,17 @@ class Urban(Scenario):
             ang *= 1.0 if rng.random() < 1.0 / (1.0 + math.exp(heading / (math.pi / 2))) else -1.0
             heading += math.radians(ang)
             vt = min(cruise, max(vmin, math.sqrt(self.lateral_g * G * R)))
-            segs.append(_Seg(angle=math.radians(ang), radius=R, ramp=vt * self.ramp_s, vcap=cruise))
+            segs.append(Segment(angle=math.radians(ang), radius=R, ramp=vt * self.ramp_s, vcap=cruise))
             total += L + R * math.radians(abs(ang))
         return segs
 
     def _trajectory(self, t, rng):
-        s, k, c = _segments_to_grid(self._segments(rng, _kmh(self.v_max_kmh) * t[-1] + 100.0))
+        s, k, c = segments_to_grid(self._segments(rng, _kmh(self.v_max_kmh) * t[-1] + 100.0))
         # never slower than v_min: lift the lateral limit where a turn is too tight for v_min
         with np.errstate(divide="ignore"):
             lat = np.maximum(self.lateral_g, _kmh(self.v_min_kmh) ** 2 * np.abs(k) / G)
-        v = _speed_plan(s, k / lat * self.lateral_g, c, self.lateral_g, self.accel_mps2, self.brake_mps2, 10.0)
-        return _space_based(t, s, v, k, self.name)
+        v = speed_plan(s, k / lat * self.lateral_g, c, self.lateral_g, self.accel_mps2, self.brake_mps2, 10.0)
+        return space_based(t, s, v, k, self.name)
 
     def profile(self, dt: float = 0.01, seed: int | None = None) -> Profile:
         """Sample the ride every ``dt`` [s]; ``seed`` (default: the field ``seed``) draws the segments."""
@@ -836,4 +837,10 @@ __all__ = [
     "UnknownScenarioError",
     "make_scenario",
     "scenario_names",
+    # the path toolkit (used by assist.risk.evaluation to build its curve scenario)
+    "Segment",
+    "require_positive",
+    "segments_to_grid",
+    "space_based",
+    "speed_plan",
 ]

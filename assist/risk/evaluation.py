@@ -51,8 +51,8 @@ import numpy as np
 
 from ptw_env.effects import as_effects
 from ptw_env.friction import FrictionPlants, FrictionSchedule
-from ptw_env.scenarios import (Scenario, ScenarioError, _positive, _Seg, _segments_to_grid, _space_based,
-                               _speed_plan, make_scenario)
+from ptw_env.scenarios import (Scenario, ScenarioError, require_positive, Segment, segments_to_grid, space_based,
+                               speed_plan, make_scenario)
 from ptw_env.vehicle import G, REFERENCE_SCOOTER
 
 #: Base effects of every evaluation ride: saturating tires whose peak friction is the road's.
@@ -104,35 +104,35 @@ class CurveTooFast(Scenario):
     seed: int = 0
 
     def _validate(self) -> None:
-        _positive(self, "speed_kmh", "mu_road", "overspeed", "warmup_g", "ramp_s")
+        require_positive(self, "speed_kmh", "mu_road", "overspeed", "warmup_g", "ramp_s")
         if self.overspeed * self.mu_road > math.tan(math.radians(40.0)):
             raise ScenarioError(f"{self.name}: overspeed * mu_road = {self.overspeed * self.mu_road:.3f} g needs more "
                                 "than 40 deg of lean (the scenarios' limit)")
 
-    def _segments(self, rng: np.random.Generator) -> tuple[list[_Seg], float]:
+    def _segments(self, rng: np.random.Generator) -> tuple[list[Segment], float]:
         v = self.speed_kmh / 3.6
-        segs = [_Seg(length=60.0, vcap=v)]
+        segs = [Segment(length=60.0, vcap=v)]
         sign = 1.0 if rng.random() < 0.5 else -1.0
         for _ in range(3):
             R = rng.uniform(60.0, 150.0)
             vt = min(v, math.sqrt(self.warmup_g * G * R))
-            segs += [_Seg(length=rng.uniform(40.0, 80.0), vcap=v),
-                     _Seg(angle=sign * math.radians(rng.uniform(30.0, 60.0)), radius=R, ramp=vt * self.ramp_s, vcap=v)]
+            segs += [Segment(length=rng.uniform(40.0, 80.0), vcap=v),
+                     Segment(angle=sign * math.radians(rng.uniform(30.0, 60.0)), radius=R, ramp=vt * self.ramp_s, vcap=v)]
             sign = -sign
-        segs.append(_Seg(length=150.0, vcap=v))
+        segs.append(Segment(length=150.0, vcap=v))
         s_crit = sum(g.length if math.isinf(g.radius) else g.radius * abs(g.angle) + min(g.ramp, g.radius * abs(g.angle))
                      for g in segs)
         Rc = v * v / (self.overspeed * self.mu_road * G)
-        segs += [_Seg(angle=sign * math.radians(90.0), radius=Rc, ramp=v * self.ramp_s, vcap=v),
-                 _Seg(length=v * self.duration_s + 100.0, vcap=v)]
+        segs += [Segment(angle=sign * math.radians(90.0), radius=Rc, ramp=v * self.ramp_s, vcap=v),
+                 Segment(length=v * self.duration_s + 100.0, vcap=v)]
         return segs, s_crit
 
     def _trajectory(self, t, rng):
         segs, s_crit = self._segments(rng)
-        s, k, cap = _segments_to_grid(segs)
+        s, k, cap = segments_to_grid(segs)
         k_plan = np.where(s < s_crit, k, 0.0)  # the rider does not slow down for the critical curve
-        vplan = _speed_plan(s, k_plan, cap, self.warmup_g, 2.0, 3.0, 10.0)
-        return _space_based(t, s, vplan, k, self.name)
+        vplan = speed_plan(s, k_plan, cap, self.warmup_g, 2.0, 3.0, 10.0)
+        return space_based(t, s, vplan, k, self.name)
 
     def profile(self, dt: float = 0.01, seed: int | None = None):
         """Sample the ride; ``seed`` (default: the field) draws the route."""
