@@ -28,8 +28,9 @@ Substituting gives the non-recursive gains
 :data:`RECURSIVE_GAINS` ``= (1.1, 1.5, 2, 3, 5, 7, 10)``: Levant's [1]_
 ``1.1, 1.5, 2, 3, 5`` (the paper's values for ``n <= 3``), then the
 ``7, 10`` that reproduce the non-recursive table of Levant & Livne [4]_
-(``n = 5``: ``1.1, 6.75, 20.26, 32.24, 23.72, 7``; [1]_ printed ``8`` for
-``lambda_5``, which [4]_ replaced).
+(``n = 5``: ``1.1, 6.75, 20.26, 32.24, 23.72, 7``; [1]_ gives ``8`` for
+``lambda_5``: both are admissible, sufficient choices, not a misprint; [2]_
+uses orders up to 3 only and prints no ``lambda_5``).
 
 Corrections to the paper's printed differentiator ([2]_ eqs. 8, 13, 14):
 

@@ -28,7 +28,11 @@ for ``xi = [e; q]`` with ``P1 = diag(Pe, Pq)`` (block-diagonal so that
 ``zeta1 eps1 + zeta2 eps2 + zeta3 eps3``. ``Delta`` enters through ``I`` as in
 the paper (not only the rank-1 direction of the ``sin(phi)`` mismatch), so it
 also covers ``sin(delta) ~ delta``, noise on the speed premise and unmodelled
-effects. The filters are used as printed (``30 pi`` rad/s = 15 Hz and
+effects. As in [1]_, ``Delta`` is treated as an exogenous input: it depends
+on ``x`` and ``e`` (the premises are computed from the estimated roll), so the
+ISS bound is a gain from ``Delta``, not a proof of closed-loop stability; no
+small-gain closure is attempted (the closed loop is checked by simulation,
+``scripts/eval_controller.py``). The filters are used as printed (``30 pi`` rad/s = 15 Hz and
 ``20 pi`` rad/s = 10 Hz, where the text says "20 Hz" and "8-10 Hz").
 Corrections to the printed theorem:
 
