@@ -1,4 +1,12 @@
-"""The ``ptw-assist`` command line (``shared/spec/cli.md``).
+"""The command-line toolkit of ``ptw-assist`` and the simulator's own commands (``shared/spec/cli.md``).
+
+This module holds the command registry (:func:`command`), the option types
+(:func:`number`, ...), the output checks and the error handling of
+:func:`main`, plus the commands of the simulator (``simulate``, ``modes``).
+It imports nothing of :mod:`assist`: the full ``ptw-assist`` program is
+:func:`assist.cli.main` (the console script), which imports the assist
+command modules so that they register here, then runs this :func:`main`.
+Called directly, :func:`main` knows the simulator's commands only.
 
 Each subcommand prints a short human summary and, with ``--json FILE``,
 writes the machine-readable figures of cli.md. Bad input ends with one line
@@ -305,12 +313,7 @@ def _build_modes(p: argparse.ArgumentParser):
 
 # ---------------------------------------------------------------------------- main
 def build_parser() -> argparse.ArgumentParser:
-    import assist.commands  # noqa: F401  (registers design, evaluate, demo, observability)
-    import assist.diagnose_cli  # noqa: F401  (registers diagnose)
-    import assist.estimate_cli  # noqa: F401  (registers estimate)
-    import assist.risk_cli  # noqa: F401  (registers risk)
-    import assist.rl_cli  # noqa: F401  (registers train-rl)
-
+    """The parser of every command registered so far (:func:`command`)."""
     parser = argparse.ArgumentParser(
         prog="ptw-assist",
         description="Powered two-wheeler lateral dynamics, estimation and rider assistance.",
@@ -327,6 +330,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Parse ``argv`` and run the command: exit status 0, 2 for bad input (one line on stderr), 1 when the
+    file system fails under the work, 130 when interrupted."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "command", None):

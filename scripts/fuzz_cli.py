@@ -47,7 +47,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from ptw_env.cli import build_parser, main  # noqa: E402
+from assist.cli import build_parser, main  # noqa: E402
 from ptw_env.logs import KNOWN_COLUMNS, REQUIRED_COLUMNS  # noqa: E402
 
 LOG_COMMANDS = ("diagnose", "estimate", "risk")

@@ -24,7 +24,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from ptw_env.cli import build_parser, main
+from assist.cli import build_parser, main
 from ptw_env.logs import PHYSICAL_BOUNDS, REQUIRED_COLUMNS, LogFormatError, is_plain_number, read_log
 
 from conftest import ROOT

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from ptw_env.cli import main
+from assist.cli import main
 from ptw_env.logs import read_log
 
 
@@ -108,7 +108,7 @@ def test_negative_seed_is_refused_in_one_line(cmd, capsys):
 
 
 def test_top_level_help_lists_every_command_readably():
-    out = subprocess.run([sys.executable, "-m", "ptw_env.cli", "--help"], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-m", "assist.cli", "--help"], capture_output=True, text=True,
                          check=True).stdout
     assert "option_strings" not in out and "5 % sensor noise" in " ".join(out.split())
     for name in ("simulate", "modes", "design", "evaluate", "demo", "estimate", "observability", "diagnose"):

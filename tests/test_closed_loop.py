@@ -23,7 +23,7 @@ import pytest
 
 from assist.evaluate import EvaluationError, make_controller, run_episode
 from assist.lqg import MEASURED, LQGController, TrackingLQR, tracking_weights
-from ptw_env.cli import main
+from assist.cli import main
 from ptw_env.dynamics import compile_plant, linearise
 from ptw_env.env import PTWRollEnv
 from ptw_env.integrate import Stepper

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from ptw_env.cli import main
+from assist.cli import main
 from ptw_env.logs import write_log
 from test_diagnose import ride
 

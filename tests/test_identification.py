@@ -19,7 +19,7 @@ from assist.identification import (
     state_variable_filter,
 )
 from assist.lpv_model import build_lpv_model
-from ptw_env.cli import main
+from assist.cli import main
 from ptw_env.logs import RideLog
 from ptw_env.ride import ride_scenario
 from ptw_env.sensors import SensorConfig

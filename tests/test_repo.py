@@ -21,7 +21,7 @@ def test_ci_runs_the_readme_test_command():
 
 
 def test_readme_main_command_is_a_known_subcommand():
-    from ptw_env.cli import build_parser
+    from assist.cli import build_parser
 
     blocks = _bash_blocks((ROOT / "README.md").read_text())
     main_cmd = blocks[0]

@@ -294,7 +294,7 @@ def wet_log(tmp_path_factory):
 
 
 def test_cli_json_holds_the_cli_md_keys(wet_log, tmp_path, capsys):
-    from ptw_env.cli import main
+    from assist.cli import main
 
     out = tmp_path / "risk.json"
     fig = tmp_path / "risk.png"
@@ -319,7 +319,7 @@ def test_cli_json_holds_the_cli_md_keys(wet_log, tmp_path, capsys):
         f"{k / 100},0,10,0,0,{'x' if k == 7 else 0},0,0\n" for k in range(200)), "line 9"),
 ])
 def test_cli_bad_log_one_line_exit_2(tmp_path, capsys, content, where):
-    from ptw_env.cli import main
+    from assist.cli import main
 
     p = tmp_path / "bad.csv"
     p.write_text(content)
@@ -343,7 +343,7 @@ def test_offline_replay_gives_the_same_assessments(wet_log, estimator):
 
 @pytest.mark.parametrize("value, words", [("3", "degrees?"), ("nan", "not a road bank"), ("x", "not a road bank")])
 def test_cli_road_bank_must_be_an_angle_in_rad(tmp_path, capsys, value, words):
-    from ptw_env.cli import main
+    from assist.cli import main
 
     with pytest.raises(SystemExit) as e:
         main(["risk", str(tmp_path / "any.csv"), "--road-bank", value])

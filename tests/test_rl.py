@@ -31,7 +31,7 @@ import sys
 import numpy as np
 import pytest
 
-from ptw_env.cli import main
+from assist.cli import main
 
 pytestmark = pytest.mark.rl
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ptw_env.cli import main
+from assist.cli import main
 from ptw_env.vehicle import REFERENCE_SCOOTER
 from ptw_env.vehicle_files import VehicleFileError, load_parameters, load_vehicle, vehicle_names
 

@@ -1,0 +1,146 @@
+"""Import rules of the code base, checked on the source (AST), every import counted (also inside functions).
+
+* ``ptw_env`` (the simulator) never imports ``assist``;
+* no library module imports the command line (``ptw_env.cli``, ``assist.cli``, ``assist.commands``,
+  ``assist.*_cli``); only command-line modules do;
+* the families of ``assist`` import one another only along the stated arrows (:data:`ARROWS`);
+* no name starting with an underscore is imported across top-level packages.
+
+Each rule is also run on a small source that breaks it, so that a checker that finds nothing fails.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("ptw_env", "assist")
+
+#: Family of each module of ``assist`` (the first two dotted parts decide: ``assist.risk.x`` -> risk).
+FAMILIES = {
+    "control": ("assist.ts_model", "assist.ts_design", "assist.ts_controller", "assist.lqg"),
+    "estimation": ("assist.lpv_model", "assist.adaptive_design", "assist.adaptive_observer",
+                   "assist.identifiability", "assist.identification"),
+    "unknown_input": ("assist.structure", "assist.observability", "assist.differentiator", "assist.hosm"),
+    "rl": ("assist.rl", "assist.policies"),
+    "risk": ("assist.risk",),
+    "diagnose": ("assist.diagnose",),
+    "evaluate": ("assist.evaluate",),
+    "cli": ("assist.cli", "assist.commands", "assist.diagnose_cli", "assist.estimate_cli", "assist.risk_cli",
+            "assist.rl_cli"),
+}
+#: Which family may import which (besides itself and ``ptw_env``): the risk warning runs the estimator, the
+#: evaluation harness runs any controller (TS, LQG, RL), the command line sits on top of everything.
+ARROWS = {
+    "risk": {"estimation"},
+    "evaluate": {"control", "rl"},
+    "cli": set(FAMILIES) - {"cli"},
+}
+CLI_MODULES = {"ptw_env.cli", *FAMILIES["cli"]}
+
+
+def module_name(path: Path, root: Path = ROOT) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def imports(source: str, module: str, is_package: bool = False) -> list[tuple[int, str, str | None]]:
+    """Every import of ``source`` as ``(line, target module, imported name or None)``."""
+    out: list[tuple[int, str, str | None]] = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name, None) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = module.split(".") if is_package else module.split(".")[:-1]
+                base = base[: len(base) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for a in node.names:
+                sub = f"{target}.{a.name}"
+                out.append((node.lineno, target, a.name))
+                out.append((node.lineno, sub, None))  # ``from pkg import module`` imports that module
+    return out
+
+
+def family_of(module: str) -> str | None:
+    for fam, prefixes in FAMILIES.items():
+        if any(module == p or module.startswith(p + ".") for p in prefixes):
+            return fam
+    return None
+
+
+def violations(module: str, source: str, is_package: bool = False) -> list[str]:
+    """The import rules ``module`` breaks (one line each, with the line number)."""
+    bad: list[str] = []
+    top = module.split(".")[0]
+    fam = family_of(module)
+    for line, target, name in imports(source, module, is_package):
+        ttop = target.split(".")[0]
+        if top == "ptw_env" and ttop == "assist":
+            bad.append(f"{module}:{line}: the simulator imports {target}")
+        if module not in CLI_MODULES and any(target == c or target.startswith(c + ".") for c in CLI_MODULES):
+            bad.append(f"{module}:{line}: library code imports the command line ({target})")
+        tfam = family_of(target)
+        if fam and tfam and tfam != fam and tfam not in ARROWS.get(fam, set()):
+            bad.append(f"{module}:{line}: family {fam} imports family {tfam} ({target})")
+        if ttop in PACKAGES and ttop != top:
+            private = [p for p in target.split(".") if p.startswith("_") and not p.startswith("__")]
+            if name and name.startswith("_") and not name.startswith("__"):
+                private.append(name)
+            if private:
+                bad.append(f"{module}:{line}: imports the private name(s) {private} of {target}")
+    return bad
+
+
+def _sources():
+    for pkg in PACKAGES:
+        for f in sorted((ROOT / pkg).rglob("*.py")):
+            yield module_name(f), f.read_text(encoding="utf-8"), f.name == "__init__.py"
+
+
+def test_every_module_belongs_to_a_family():
+    loose = [m for m, _, _ in _sources() if m.startswith("assist.") and family_of(m) is None]
+    assert loose == [], f"assist modules outside every family (add them to FAMILIES): {loose}"
+
+
+def test_the_code_base_keeps_the_import_rules():
+    found = [v for m, src, pkg in _sources() for v in violations(m, src, pkg)]
+    assert found == [], "\n".join(found)
+
+
+@pytest.mark.parametrize(
+    "module, source, expected",
+    [
+        ("ptw_env.env", "def f():\n    import assist.hosm\n", "the simulator imports"),
+        ("ptw_env.logs", "from assist.risk import monitor\n", "the simulator imports"),
+        ("assist.hosm", "from ptw_env.cli import number\n", "library code imports the command line"),
+        ("assist.risk.monitor", "from ..risk_cli import x\n", "library code imports the command line"),
+        ("assist.diagnose.replay", "from assist.adaptive_observer import AdaptiveObserver\n", "family diagnose"),
+        ("assist.ts_design", "from .hosm import design_uihosmo\n", "family control imports family unknown_input"),
+        ("assist.identification", "from ptw_env.kernels import _deriv\n", "private name"),
+        ("assist.risk.evaluation", "from ptw_env._secret import x\n", "private name"),
+    ],
+)
+def test_the_checker_finds_each_kind_of_violation(module, source, expected):
+    found = violations(module, source)
+    assert any(expected in v for v in found), found
+
+
+@pytest.mark.parametrize(
+    "module, source",
+    [
+        ("assist.risk.pipeline", "from ..adaptive_observer import AdaptiveObserver\n"),  # a stated arrow
+        ("assist.evaluate", "from .rl import load_policy\n"),
+        ("assist.cli", "from . import commands\nimport ptw_env.cli\n"),
+        ("assist.hosm", "from ptw_env.vehicle import REFERENCE_SCOOTER\nfrom .differentiator import _x\n"),
+    ],
+)
+def test_the_checker_accepts_what_the_rules_allow(module, source):
+    assert violations(module, source) == []
