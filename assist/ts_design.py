@@ -188,7 +188,7 @@ import numpy as np
 
 from ptw_env.vehicle import PHI, STATE_NAMES, VY, Vehicle
 
-from .ts_controller import DiscreteTS, discretise, sampled_closed_loop
+from .ts_discrete import DiscreteTS, discretise, sampled_closed_loop
 from .ts_model import (
     AUGMENTED_NAMES,
     MEASUREMENT_NAMES,

@@ -443,7 +443,22 @@ class PTWRollEnv(gym.Env):
             self.render()
         return obs, float(reward), bool(terminated), bool(truncated), info
 
-    # ------------------------------------------------------------------
+    # ------------------------------------------------------------------ public view (render, tools)
+    @property
+    def step_index(self) -> int:
+        """Index ``k`` of the current sample (time ``k dt`` [s]) in the episode's profile."""
+        return self._k
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """Ground pose ``(X [m], Y [m], psi [rad])`` of the rear contact, dead-reckoned from ``vx``, ``vy``, ``r``."""
+        return float(self._pose[0]), float(self._pose[1]), float(self._pose[2])
+
+    @property
+    def trace(self) -> np.ndarray:
+        """Path so far, shape (n, 3): ``X`` [m], ``Y`` [m] and roll ``phi`` [rad] at every step of the episode."""
+        return np.asarray(self._trace, dtype=float).reshape(-1, 3)
+
     def render(self):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")

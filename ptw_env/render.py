@@ -55,7 +55,7 @@ def _rear_view(d: ImageDraw.ImageDraw, phi: float, phi_ref: float, delta: float,
 def _top_view(d: ImageDraw.ImageDraw, env: "PTWRollEnv", box: tuple[int, int, int, int]) -> None:
     x0, y0, x1, y1 = box
     X, Y = env.profile.X, env.profile.Y
-    trace = np.asarray(env._trace) if env._trace else np.zeros((1, 3))
+    trace = env.trace if len(env.trace) else np.zeros((1, 3))
     allx = np.concatenate([X, trace[:, 0]])
     ally = np.concatenate([Y, trace[:, 1]])
     span = max(np.ptp(allx), np.ptp(ally), 1.0)
@@ -71,12 +71,12 @@ def _top_view(d: ImageDraw.ImageDraw, env: "PTWRollEnv", box: tuple[int, int, in
     if len(trace) > 1:
         st = max(1, len(trace) // 400)
         d.line([p(a, b) for a, b in zip(trace[::st, 0], trace[::st, 1])], fill=_BIKE, width=2)
-    px, py = p(env._pose[0], env._pose[1])
-    psi = env._pose[2]
+    px, py = p(env.pose[0], env.pose[1])
+    psi = env.pose[2]
     d.ellipse([px - 5, py - 5, px + 5, py + 5], fill=_BIKE)
     d.line([(px, py), (px + 18 * math.cos(psi), py - 18 * math.sin(psi))], fill=_INK, width=2)
-    t = env._k * env.dt
-    d.text((x0 + 8, y0 + 6), f"{env.scenario.name}  t {t:5.1f} s  v {3.6 * env.profile.vx[env._k]:5.1f} km/h", fill=_INK)
+    t = env.step_index * env.dt
+    d.text((x0 + 8, y0 + 6), f"{env.scenario.name}  t {t:5.1f} s  v {3.6 * env.profile.vx[env.step_index]:5.1f} km/h", fill=_INK)
     d.text((x0 + 8, y1 - 18), "top view: reference (blue), ridden (red)", fill=_INK)
 
 
@@ -87,7 +87,7 @@ def draw_frame(env: "PTWRollEnv") -> np.ndarray:
     half = WIDTH // 2
     d.line([(half, 8), (half, HEIGHT - 8)], fill=_GRID, width=1)
     x = env.state
-    _rear_view(d, float(x[0]), float(env.profile.phi_ref[env._k]), float(x[1]), (0, 0, half, HEIGHT))
+    _rear_view(d, float(x[0]), float(env.profile.phi_ref[env.step_index]), float(x[1]), (0, 0, half, HEIGHT))
     _top_view(d, env, (half, 0, WIDTH, HEIGHT))
     return np.asarray(img, dtype=np.uint8)
 

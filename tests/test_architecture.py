@@ -4,7 +4,9 @@
 * no library module imports the command line (``ptw_env.cli``, ``assist.cli``, ``assist.commands``,
   ``assist.*_cli``); only command-line modules do;
 * the families of ``assist`` import one another only along the stated arrows (:data:`ARROWS`);
-* no name starting with an underscore is imported across top-level packages.
+* no name starting with an underscore is imported across top-level packages;
+* no import circle among the modules (imports under ``if TYPE_CHECKING:`` are not run and do not count;
+  ``from pkg import module`` depends on the module, not on ``pkg/__init__``).
 
 Each rule is also run on a small source that breaks it, so that a checker that finds nothing fails.
 """
@@ -21,7 +23,7 @@ PACKAGES = ("ptw_env", "assist")
 
 #: Family of each module of ``assist`` (the first two dotted parts decide: ``assist.risk.x`` -> risk).
 FAMILIES = {
-    "control": ("assist.ts_model", "assist.ts_design", "assist.ts_controller", "assist.lqg"),
+    "control": ("assist.ts_model", "assist.ts_discrete", "assist.ts_design", "assist.ts_controller", "assist.lqg"),
     "estimation": ("assist.lpv_model", "assist.adaptive_design", "assist.adaptive_observer",
                    "assist.identifiability", "assist.identification"),
     "unknown_input": ("assist.structure", "assist.observability", "assist.differentiator", "assist.hosm"),
@@ -103,6 +105,81 @@ def _sources():
     for pkg in PACKAGES:
         for f in sorted((ROOT / pkg).rglob("*.py")):
             yield module_name(f), f.read_text(encoding="utf-8"), f.name == "__init__.py"
+
+
+def module_graph(sources: dict[str, tuple[str, bool]]) -> dict[str, set[str]]:
+    """``module -> modules it imports`` among ``sources`` (name -> (source, is_package)), see the module docstring."""
+    graph: dict[str, set[str]] = {}
+    for m, (src, is_pkg) in sources.items():
+        tree = ast.parse(src)
+        typing_only = {id(n) for node in ast.walk(tree)
+                       if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+                       for sub in node.body for n in ast.walk(sub)}
+        deps: set[str] = set()
+        for node in ast.walk(tree):
+            if id(node) in typing_only or not isinstance(node, (ast.Import, ast.ImportFrom)):
+                continue
+            if isinstance(node, ast.Import):
+                deps.update(a.name for a in node.names)
+                continue
+            _, target, _ = imports(ast.unparse(node), m, is_pkg)[0]
+            for a in node.names:
+                deps.add(f"{target}.{a.name}" if f"{target}.{a.name}" in sources else target)
+        graph[m] = {d for d in deps if d in sources and d != m}
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                found.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_import_circle():
+    graph = module_graph({m: (src, pkg) for m, src, pkg in _sources()})
+    assert cycles(graph) == []
+
+
+def test_the_circle_finder_finds_a_circle_and_ignores_typing_only_imports():
+    sources = {
+        "assist.a": ("from .b import f\n", False),
+        "assist.b": ("def f():\n    from assist.a import g\n", False),  # a function-level import counts
+        "assist.c": ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .d import X\n", False),
+        "assist.d": ("from .c import Y\n", False),
+        "assist.e": ("from . import f\n", False),  # the module assist.f, not the package
+        "assist": ("from .e import h\n", True),
+        "assist.f": ("", False),
+    }
+    assert cycles(module_graph(sources)) == [["assist.a", "assist.b"]]
 
 
 def test_every_module_belongs_to_a_family():
