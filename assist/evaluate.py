@@ -94,7 +94,7 @@ class TSAdapter:
         from .ts_design import design
 
         self.design = design(_prior_model(env, self.name), vmin=vmin, vmax=vmax)
-        self.ctrl = TSObserverController(self.design)
+        self.ctrl = TSObserverController(self.design, tau_max=env.tau_max)  # fed the torque the plant gets
 
     def reset(self) -> None:
         self.ctrl.reset()
@@ -160,6 +160,11 @@ class TSStateAdapter(FullStateLQR):
         self.ctrl = TSStateFeedback(self.design)
 
 
+#: A controller torque beyond this [N m] (or not finite) ends the episode as diverged: no actuator of a
+#: two-wheeler comes near it (the environment clips to its ``tau_max`` anyway), and float32 actions overflow at 3e38.
+TORQUE_DIVERGED_NM = 1e9
+
+
 def make_controller(name: str, env: PTWRollEnv, **options: Any) -> Controller:
     """Build controller ``name`` for ``env`` (designed on ``env.get_prior()``)."""
     if name == "ts":
@@ -211,6 +216,7 @@ class Episode:
             "torque_rms_nm": float(np.sqrt(np.mean(self.tau**2))),
             "torque_max_nm": float(np.max(np.abs(self.tau))),
             "fell": bool(self.fell),
+            "diverged": self.reason.startswith("diverged"),
             "end_reason": self.reason,
             "estimation_rmse": None,
         }
@@ -246,8 +252,10 @@ def run_episode(
     reason = "scenario_end"
     while True:
         tau = float(ctrl.act(obs, info))
-        if not math.isfinite(tau):
-            raise EvaluationError(f"controller {ctrl.name} returned a non-finite torque at t = {info['t']:.2f} s")
+        if not (math.isfinite(tau) and abs(tau) <= TORQUE_DIVERGED_NM):
+            # the closed loop diverged: an outcome of the evaluation, not an error of the program
+            reason = f"diverged: torque {tau:.3g} N m at t = {info['t']:.2f} s"
+            break
         ts.append(info["t"])
         refs.append(info["phi_ref"])
         xs.append(info["state"])
@@ -261,6 +269,8 @@ def run_episode(
             reason = info.get("reason", "scenario_end")
             break
     env.close()
+    if not ts:
+        raise EvaluationError(f"controller {ctrl.name}: {reason} (at the first sample: nothing to evaluate)")
     return Episode(
         controller=ctrl.name, scenario=env.scenario.name, speed_kmh=speed_kmh, noise_pct=noise_pct, seed=seed,
         t=np.array(ts), phi_ref=np.array(refs), x=np.array(xs), x_hat=np.array(xh) if xh else None,

@@ -333,8 +333,9 @@ def _premise_mu(vx, phi, vmin, vmax, z2min, mu):
 
 
 @njit(cache=True)
-def _update_kernel(z, w, mu, M, K, y, vx, r, rd, rdd, started, order, box, ff, ffgrid):
-    """One sample of :class:`TSObserverController` (see there); returns the torque.
+def _update_kernel(z, w, mu, M, K, y, vx, r, rd, rdd, started, order, box, ff, ffgrid, tau_max):
+    """One sample of :class:`TSObserverController` (see there); returns the torque, clipped to
+    ``[-tau_max, tau_max]`` (``inf``: no limit), which is also what the observer is fed next period.
 
     ``(r, rd, rdd)``: the (filtered) reference and its derivatives; ``box = [vmin, vmax, z2min]``,
     ``ffgrid = [v0, dv, z0, dz]`` of the feedforward table ``ff``. Without ``started`` the state ``z`` is
@@ -365,6 +366,10 @@ def _update_kernel(z, w, mu, M, K, y, vx, r, rd, rdd, started, order, box, ff, f
         tau += xr[8]
         for a in range(8):
             tau += kb[a] * xr[a]
+    if tau > tau_max:
+        tau = tau_max
+    elif tau < -tau_max:
+        tau = -tau_max
     for a in range(NZ):
         w[a] = z[a]
     w[10] = tau
@@ -408,6 +413,12 @@ class TSObserverController:
         ``phi_r'``, ``phi_r''`` (default :data:`REFERENCE_BANDWIDTH`). None:
         the raw sample and two backward differences (the former law, kept for
         comparison: a torque spike wherever ``phi_r''`` jumps).
+    tau_max : float or None
+        The actuator's limit [N m] (e.g. the environment's ``tau_max``): the
+        torque is clipped to ``[-tau_max, tau_max]`` and the observer is fed
+        the clipped torque, the one the plant receives (otherwise the
+        observer's model of the input is wrong whenever the limit acts, and
+        the estimate winds up). None: no limit, the paper's law.
 
     Attributes
     ----------
@@ -431,12 +442,15 @@ class TSObserverController:
     """
 
     def __init__(self, design: "TSDesign", *, feedforward: int | None = 2,
-                 reference_bandwidth: float | None = REFERENCE_BANDWIDTH) -> None:
+                 reference_bandwidth: float | None = REFERENCE_BANDWIDTH, tau_max: float | None = None) -> None:
         disc = getattr(design, "runtime", None)
         if not isinstance(disc, DiscreteTS):
             raise TypeError(f"design must be a TSDesign from assist.ts_design.design, got {type(design).__name__}")
         if feedforward not in (None, 0, 1, 2) or isinstance(feedforward, bool):
             raise ValueError(f"feedforward must be None (off) or the series order 0, 1 or 2, got {feedforward!r}")
+        if tau_max is not None and not (isinstance(tau_max, (int, float)) and tau_max > 0):
+            raise ValueError(f"tau_max must be a positive torque in N m (or None: no limit), got {tau_max!r}")
+        self.tau_max = math.inf if tau_max is None else float(tau_max)
         ts = design.ts
         self.design = design
         self.dt = disc.dt
@@ -534,7 +548,7 @@ class TSObserverController:
             rf, rd, rdd = r, (r - r1) / self.dt, (r - 2.0 * r1 + r2) / (self.dt * self.dt)
             self._r1, self._r2 = r, r1
         tau = _update_kernel(self.z, self._w, self.mu, self._M, self._K, yv, vx, rf, rd, rdd, k > 0,
-                             self._order, self._box, self._ff, self._ffgrid)
+                             self._order, self._box, self._ff, self._ffgrid, self.tau_max)
         self._k = k + 1
         return tau
 
@@ -608,7 +622,7 @@ class TSStateFeedback:
         c.z[:8] = xv
         c._k += 1
         return _update_kernel(c.z, c._w, c.mu, c._M, c._K, self._y0, vx, rf, rd, rdd, False,
-                              c._order, c._box, c._ff, c._ffgrid)
+                              c._order, c._box, c._ff, c._ffgrid, c.tau_max)
 
 
 # --------------------------------------------------------------------------- a plain closed-loop harness
