@@ -9,7 +9,20 @@ import argparse
 import math
 from pathlib import Path
 
-from ptw_env.cli import SPEED_KMH, SPEED_MS, CLIError, check_outputs, NOISE_PCT, SEED, write_json, command, effect_arg, write_figure
+from ptw_env.cli import (
+    NOISE_PCT,
+    SEED,
+    SPEED_KMH,
+    SPEED_MS,
+    CLIError,
+    add_vehicle_option,
+    check_outputs,
+    chosen_vehicle,
+    command,
+    effect_arg,
+    write_figure,
+    write_json,
+)
 
 DEFAULT_DEMO = {"scenario": "double_lane_change", "noise": 5.0, "seed": 0}
 
@@ -33,8 +46,13 @@ def _speed_range(a: argparse.Namespace) -> dict[str, float]:
     "ptw-assist design --vmin 8 --vmax 33 --json design.json",
 )
 def _build_design(p: argparse.ArgumentParser):
-    p.add_argument("--vmin", type=SPEED_MS, default=None, help="lower end of the speed premise [m/s] (default 8)")
-    p.add_argument("--vmax", type=SPEED_MS, default=None, help="upper end of the speed premise [m/s] (default 33)")
+    add_vehicle_option(p)
+    p.add_argument("--vmin", type=SPEED_MS, default=None,
+                   help="lower end of the speed premise [m/s] (default: the vehicle's design range, 8 for the "
+                        "reference scooter)")
+    p.add_argument("--vmax", type=SPEED_MS, default=None,
+                   help="upper end of the speed premise [m/s] (default: the vehicle's design range, 33 for the "
+                        "reference scooter)")
     p.add_argument("--solver", choices=("CLARABEL", "SCS"), default="CLARABEL")
     p.add_argument("--no-cache", action="store_true", help="solve again even if an identical design is cached")
     p.add_argument("--json", default=None, metavar="FILE")
@@ -44,12 +62,27 @@ def _build_design(p: argparse.ArgumentParser):
         from .ts_design import design_report, format_summary
 
         check_outputs(a, "json")
-        rep = design_report(solver=a.solver, cache=not a.no_cache, **_speed_range(a))
+        v = chosen_vehicle(a)
+        _check_range_in_vehicle(a, v)
+        rep = design_report(v, solver=a.solver, cache=not a.no_cache, **_speed_range(a))
+        rep["vehicle"] = v.identity()
+        print(f"vehicle: {v.name}")
         print(format_summary(rep))
+        if not rep.get("feasible"):
+            print(f"  (speed range tried: {_speed_range(a) or 'the design range of ' + v.name}; narrow it with "
+                  f"--vmin/--vmax, or set [speed_range] design_vmin/design_vmax in the vehicle file)")
         write_json(a.json, rep, a.overwrite)
         return 0 if rep.get("feasible") else 1
 
     return run
+
+
+def _check_range_in_vehicle(a: argparse.Namespace, v) -> None:
+    """``--vmin``/``--vmax`` inside the vehicle's valid speed range (one clear error otherwise)."""
+    for name in ("vmin", "vmax"):
+        x = getattr(a, name, None)
+        if x is not None and not (v.vmin <= x <= v.vmax):
+            raise CLIError(f"--{name} {x:g} m/s is outside the valid range [{v.vmin:g}, {v.vmax:g}] m/s of {v.name}")
 
 
 def _add_episode_args(p: argparse.ArgumentParser, controller: bool = True) -> None:
@@ -62,14 +95,17 @@ def _add_episode_args(p: argparse.ArgumentParser, controller: bool = True) -> No
         p.add_argument("--policy", default=None, metavar="POLICY.zip",
                        help="rl: a policy file from 'ptw-assist train-rl' (default: the shipped policy)")
     p.add_argument("--scenario", choices=scenario_names(), default=DEFAULT_DEMO["scenario"])
+    add_vehicle_option(p)
     p.add_argument("--speed", type=SPEED_KMH, default=None, metavar="KMH", help="cruise speed [km/h] where the scenario has one")
     p.add_argument("--noise", type=NOISE_PCT, default=DEFAULT_DEMO["noise"], metavar="PCT",
                    help="sensor noise in percent of each channel's range (default 5, the paper's)")
     p.add_argument("--seed", type=SEED, default=DEFAULT_DEMO["seed"], help="seed of the sensor noise (>= 0)")
     p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE", type=effect_arg,
                    help="an effect of effects.md in the true plant (the controller is designed on the nominal model)")
-    p.add_argument("--vmin", type=SPEED_MS, default=None, help="TS design: lower end of the speed premise [m/s]")
-    p.add_argument("--vmax", type=SPEED_MS, default=None, help="TS design: upper end of the speed premise [m/s]")
+    p.add_argument("--vmin", type=SPEED_MS, default=None,
+                   help="TS design: lower end of the speed premise [m/s] (default: the vehicle's design range)")
+    p.add_argument("--vmax", type=SPEED_MS, default=None,
+                   help="TS design: upper end of the speed premise [m/s] (default: the vehicle's design range)")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true")
@@ -80,13 +116,18 @@ def _episode(a: argparse.Namespace, controller: str):
 
     from .evaluate import run_episode
 
+    v = chosen_vehicle(a)
+    _check_range_in_vehicle(a, v)
     opts = _speed_range(a) if controller in ("ts", "ts_state") else {}
     if getattr(a, "policy", None) is not None:
         if controller != "rl":
             raise CLIError(f"--policy applies to --controller rl, not {controller}")
         opts["policy"] = a.policy
-    return run_episode(controller, a.scenario, speed_kmh=a.speed, noise_pct=a.noise, seed=a.seed,
-                       effects=Effects.parse(a.effect), controller_options=opts)
+    try:
+        return run_episode(controller, a.scenario, speed_kmh=a.speed, noise_pct=a.noise, seed=a.seed,
+                           effects=Effects.parse(a.effect), controller_options=opts, vehicle=v)
+    except ValueError as exc:  # a design the vehicle cannot certify, a speed outside its range, ...
+        raise CLIError(f"{v.name}, controller {controller}: {exc}") from None
 
 
 @command(
@@ -103,7 +144,11 @@ def _build_evaluate(p: argparse.ArgumentParser):
         check_outputs(a, "plot", "json")
         ep = _episode(a, a.controller)
         m = ep.metrics()
+        m["vehicle"] = chosen_vehicle(a).identity()
+        print(f"vehicle: {chosen_vehicle(a).name}")
         print(metrics_table([m]))
+        if m["diverged"] or m["fell"]:
+            print(f"the episode ended early: {m['end_reason']}")
         if a.plot:
             write_figure(a.plot, lambda f: plot_episode(ep, f))
             print(f"figure written to {a.plot}")
@@ -129,7 +174,8 @@ def _build_demo(p: argparse.ArgumentParser):
         check_outputs(a, "plot", "json")
         eps = {c: _episode(a, c) for c in ("ts", "lqg", "lqr", "ts_state")}
         ms = {c: e.metrics() for c, e in eps.items()}
-        print(f"closed-loop roll tracking, {a.scenario}, noise {a.noise} % of range, seed {a.seed} "
+        print(f"closed-loop roll tracking, {chosen_vehicle(a).name}, {a.scenario}, noise {a.noise} % of range, "
+              f"seed {a.seed} "
               f"(ts and lqg see only the noisy sensors; the full-state bounds lqr (tracking LQR) and ts_state "
               f"(the TS gains, observer bypassed) get the true state)")
         print(metrics_table(list(ms.values())))
@@ -137,6 +183,7 @@ def _build_demo(p: argparse.ArgumentParser):
         print(f"figure written to {Path(a.plot)}")
         out = dict(ms["ts"])
         out["baselines"] = {"lqg": ms["lqg"], "lqr": ms["lqr"], "ts_state": ms["ts_state"]}
+        out["vehicle"] = chosen_vehicle(a).identity()
         write_json(a.json, out, a.overwrite)
         return 0
 
@@ -151,8 +198,10 @@ def _build_demo(p: argparse.ArgumentParser):
 def _build_observability(p: argparse.ArgumentParser):
     from ptw_env.cli import speed_list
 
+    add_vehicle_option(p)
     p.add_argument("--speeds", type=speed_list, default=None, metavar="V1,V2,...",
-                   help="speeds in m/s (default: 8 to 33 m/s)")
+                   help="speeds in m/s (default: 26 speeds across the vehicle's design range, 8 to 33 m/s for the "
+                        "reference scooter)")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true")
@@ -161,7 +210,12 @@ def _build_observability(p: argparse.ArgumentParser):
         from .observability import format_report, observability_report, plot_report
 
         check_outputs(a, "plot", "json")
-        rep = observability_report(a.speeds)
+        v = chosen_vehicle(a)
+        bad = [x for x in (a.speeds or []) if not (v.vmin <= x <= v.vmax)]
+        if bad:
+            raise CLIError(f"--speeds: {bad} m/s outside the valid range [{v.vmin:g}, {v.vmax:g}] m/s of {v.name}")
+        rep = observability_report(a.speeds, vehicle=v)
+        rep["vehicle"] = v.identity()
         print(format_report(rep))
         if a.plot:
             write_figure(a.plot, lambda f: plot_report(rep, f))

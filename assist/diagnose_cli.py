@@ -11,7 +11,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ptw_env.cli import CLIError, check_outputs, write_json, command, number, write_figure
+from ptw_env.cli import (
+    CLIError,
+    add_vehicle_option,
+    check_outputs,
+    command,
+    number,
+    vehicle_for_log,
+    write_figure,
+    write_json,
+)
 
 
 #: ``--window``: replay window length [s].
@@ -26,6 +35,7 @@ _window = number(0.2, 20.0, unit="s")
 )
 def _build_diagnose(p: argparse.ArgumentParser):
     p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md), with an optional JSON sidecar")
+    add_vehicle_option(p, from_log=True)
     p.add_argument("--json", default=None, metavar="REPORT.json", help="write the report (diagnose.md)")
     p.add_argument("--plot", default=None, metavar="REPORT.png",
                    help="measured vs nominal vs extended model, residual before/after")
@@ -50,8 +60,13 @@ def _build_diagnose(p: argparse.ArgumentParser):
             raise FileNotFoundError(f"{log}: no such file")
         if log.is_dir():
             raise CLIError(f"{log} is a directory, not a ride log")
+        from ptw_env.logs import read_log
+
         pairs = {"auto": True, "all": "all", "none": False}[a.pairs]
-        rep = diagnose(log, window_s=a.window, pairs=pairs, progress=False if a.no_progress else None)
+        ride = read_log(log)
+        v = vehicle_for_log(a, ride)  # --vehicle, else the sidecar's, else the reference scooter
+        print(f"vehicle: {v.name}")
+        rep = diagnose(ride, window_s=a.window, pairs=pairs, progress=False if a.no_progress else None, vehicle=v)
         print(rep.summary())
         print(f"diagnosed in {rep.seconds:.1f} s ({100 * rep.sim_seconds / rep.seconds:.0f} % in the simulator)")
         if a.plot:

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ptw_env.cli import CLIError, road_bank, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure
+from ptw_env.cli import CLIError, road_bank, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure, add_vehicle_option
 
 METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
 
@@ -111,6 +111,7 @@ def resolve_design(a: argparse.Namespace) -> str:
 )
 def _build(p: argparse.ArgumentParser):
     p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md); its roll column is never used")
+    add_vehicle_option(p, from_log=True)  # only the reference scooter is accepted (its observers)
     p.add_argument("--method", choices=METHOD_CHOICES, default="adaptive",
                    help="adaptive (LPV adaptive observer, default), direct (eq. 12), inversion (eq. 13), "
                         "ukf (joint extended Kalman filter; ekf is an alias)")
@@ -148,7 +149,7 @@ def _build(p: argparse.ArgumentParser):
         if a.tau_a is not None and not (math.isfinite(a.tau_a) and a.tau_a > 0):
             raise CLIError(f"--tau-a: expected a positive time in seconds, got {a.tau_a}")
         log = read_log(a.log)
-        reference_scooter_log(log, "estimate")
+        reference_scooter_log(log, "estimate", a.vehicle)
         why = resolve_design(a)
         dt = float(log.dt)
         pct = _noise_pct(a, log.meta)

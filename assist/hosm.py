@@ -717,9 +717,11 @@ class ScheduledUIHOSMO(_UIObserverBase):
     config : HOSMConfig
         As for the fixed observer; ``design_speed`` is where ``L`` is placed.
     vehicle : Vehicle, optional
-    speed_range : (float, float)
+    speed_range : (float, float), optional
         Scheduling range [m/s] (the speed is clipped to it; :attr:`clipped`
-        counts the samples where that happened).
+        counts the samples where that happened); default the vehicle's design
+        range (:attr:`ptw_env.vehicle.Vehicle.control_range`, 8-33 m/s for the
+        reference scooter).
     grid_step : float
         Spacing of the precomputed designs [m/s] (linear interpolation between).
     luenberger_speed : float, optional
@@ -738,12 +740,12 @@ class ScheduledUIHOSMO(_UIObserverBase):
     """
 
     def __init__(self, config: HOSMConfig | None = None, vehicle: Vehicle | None = None,
-                 speed_range: tuple[float, float] = (8.0, 33.0), grid_step: float = 0.5,
+                 speed_range: tuple[float, float] | None = None, grid_step: float = 0.5,
                  luenberger_speed: float | None = None, min_decay: float = 2.0,
                  lipschitz: Sequence[float] | None = None) -> None:
         cfg = HOSMConfig() if config is None else config
         veh = REFERENCE_SCOOTER if vehicle is None else vehicle
-        lo, hi = (float(s) for s in speed_range)
+        lo, hi = (float(s) for s in (veh.control_range if speed_range is None else speed_range))
         if not (veh.vmin <= lo < hi <= veh.vmax):
             raise HOSMDesignError(f"speed_range must satisfy {veh.vmin} <= lo < hi <= {veh.vmax} m/s, got {speed_range!r}")
         if not (isinstance(grid_step, (int, float)) and 0 < grid_step <= hi - lo):

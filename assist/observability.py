@@ -193,8 +193,11 @@ def analyse_triplet(tr: PTWTriplet, stability_margin: float = 0.0) -> StructureR
     return analyse(tr.A, tr.D, tr.C, stability_margin=stability_margin)
 
 
-def _speeds(speeds) -> list[float]:
-    sp = DEFAULT_SPEEDS if speeds is None else speeds
+def _speeds(speeds, vehicle: Vehicle = REFERENCE_SCOOTER) -> list[float]:
+    if speeds is None:  # 26 speeds across the vehicle's design range (8-33 m/s by 1 m/s for the scooter)
+        lo, hi = vehicle.control_range
+        return [round(float(x), 6) for x in np.linspace(lo, hi, len(DEFAULT_SPEEDS))]
+    sp = speeds
     try:
         out = [float(s) for s in np.atleast_1d(np.asarray(sp, dtype=float))]
     except (TypeError, ValueError):
@@ -225,7 +228,7 @@ def _verdict(speeds: list[float], reps: list[StructureReport]) -> str:
 def analyse_case(case: Case | str, speeds=None, vehicle: Vehicle | None = None) -> dict[str, Any]:
     """One entry of the report's ``"cases"`` list (cli.md keys and more)."""
     c = _case(case) if isinstance(case, str) else case
-    sp = _speeds(speeds)
+    sp = _speeds(speeds, REFERENCE_SCOOTER if vehicle is None else vehicle)
     reps = [analyse_triplet(ptw_triplet(s, c.unknown_inputs, c.outputs, vehicle)) for s in sp]
     tr = ptw_triplet(sp[0], c.unknown_inputs, c.outputs, vehicle)
     return {
@@ -261,7 +264,7 @@ def measurement_search(speeds=None, vehicle: Vehicle | None = None, unknown_inpu
     an invariant zero over the speeds, None when there is none or the set is not left-invertible), sorted:
     strongly observable first, then detectable, then by the number of sensors and the worst zero.
     """
-    sp = _speeds(speeds)
+    sp = _speeds(speeds, REFERENCE_SCOOTER if vehicle is None else vehicle)
     ui = tuple(unknown_inputs)
     rows = []
     for k in range(len(ui), max_outputs + 1):
@@ -281,7 +284,8 @@ def measurement_search(speeds=None, vehicle: Vehicle | None = None, unknown_inpu
 
 
 def observability_report(speeds=None, vehicle: Vehicle | None = None, search: bool = True) -> dict[str, Any]:
-    """The structural analysis of :data:`CASES` over ``speeds`` [m/s] (default 8-33 m/s by 1 m/s).
+    """The structural analysis of :data:`CASES` over ``speeds`` [m/s] (default 26 speeds across the vehicle's design
+    range, :attr:`ptw_env.vehicle.Vehicle.control_range`: 8-33 m/s by 1 m/s for the reference scooter).
 
     Returns the dictionary of ``shared/spec/cli.md`` (``{"cases": [{"name",
     "unknown_inputs", "outputs", "speeds", "relative_degree",
@@ -292,7 +296,7 @@ def observability_report(speeds=None, vehicle: Vehicle | None = None, search: bo
     and ``tau`` unknown.
     """
     v = REFERENCE_SCOOTER if vehicle is None else vehicle
-    sp = _speeds(speeds)
+    sp = _speeds(speeds, v)
     rep: dict[str, Any] = {
         "vehicle": v.name,
         "model": "E^-1 A(vx), E^-1 B linearised at phi = 0 (shared/spec/model.md); phi as unknown input rearranged "

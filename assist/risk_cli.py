@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure
+from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure, add_vehicle_option
 
 
 @command(
@@ -25,6 +25,7 @@ from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, w
 )
 def _build(p: argparse.ArgumentParser):
     p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md); an extra 'kappa' column [1/m] is the map ahead")
+    add_vehicle_option(p, from_log=True)  # only the reference scooter is accepted (its observers)
     p.add_argument("--noise", type=NOISE_PCT, default=None, metavar="PCT",
                    help="sensor noise in percent of range the observer is designed for "
                         "(default: the sidecar's noise_pct, else 5)")
@@ -53,7 +54,7 @@ def _build(p: argparse.ArgumentParser):
 
         check_outputs(a, "plot", "json")
         log = read_log(a.log)
-        reference_scooter_log(log, "risk")
+        reference_scooter_log(log, "risk", a.vehicle)
         dt = float(log.dt)
         pct = a.noise
         if pct is None:

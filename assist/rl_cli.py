@@ -12,7 +12,8 @@ import shlex
 import sys
 from pathlib import Path
 
-from ptw_env.cli import CLIError, check_outputs, SEED, write_json, command, number
+from ptw_env.cli import SEED, CLIError, add_vehicle_option, check_outputs, chosen_vehicle, command, number, write_json
+from ptw_env.vehicle import REFERENCE_SCOOTER
 
 #: Settings of the shipped policy (``assist/policies/ppo_roll.json``).
 DEFAULT_STEPS = 6_000_000
@@ -30,6 +31,7 @@ def _int_at_least(lo: int, hi: int = 10**12):
 )
 def _build_train_rl(p: argparse.ArgumentParser):
     p.add_argument("--algo", choices=("ppo", "sac"), default="ppo")
+    add_vehicle_option(p)
     p.add_argument("--steps", type=_int_at_least(1), default=DEFAULT_STEPS, metavar="N",
                    help=f"environment steps of 10 ms over all copies (default {DEFAULT_STEPS}, the shipped policy's)")
     p.add_argument("--seed", type=SEED, default=0, metavar="N",
@@ -50,6 +52,11 @@ def _build_train_rl(p: argparse.ArgumentParser):
     def run(a: argparse.Namespace) -> int:
         from .rl import train
 
+        v = chosen_vehicle(a)
+        if v.identity()["model_sha256"] != REFERENCE_SCOOTER.identity()["model_sha256"]:
+            raise CLIError(f"--vehicle {v.name!r}: the training distribution (speeds 30-90 km/h, torque scale, "
+                           f"reward) is defined for the reference scooter only; training on another vehicle is not "
+                           f"supported yet")
         out = Path(a.out)
         if out.suffix != ".zip":
             raise CLIError(f"--out: the policy file must end in .zip, got {out.name!r}")

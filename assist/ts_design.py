@@ -186,7 +186,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ptw_env.vehicle import PHI, STATE_NAMES, VY, Vehicle
+from ptw_env.vehicle import PHI, REFERENCE_SCOOTER, STATE_NAMES, VY, Vehicle
 
 from .ts_discrete import DiscreteTS, discretise, sampled_closed_loop
 from .ts_model import (
@@ -199,10 +199,12 @@ from .ts_model import (
     H1_GAIN,
     augment,
     build_ts_model,
+    split_model,
 )
 
-#: Speed range of the default design [m/s] (the issue's wide range).
-DEFAULT_SPEED_RANGE = (8.0, 33.0)
+#: Speed range of the reference scooter's default design [m/s] (the issue's wide range); another vehicle's
+#: default is its own :attr:`ptw_env.vehicle.Vehicle.control_range`.
+DEFAULT_SPEED_RANGE = REFERENCE_SCOOTER.control_range
 #: Bump when the problem formulation changes (invalidates cached designs).
 FORMULATION_VERSION = "ts-design-2"
 SOLVERS = ("CLARABEL", "SCS")
@@ -1052,7 +1054,8 @@ def design(
     vehicle : Vehicle, optional
         Defaults to the reference scooter.
     vmin, vmax : float, optional
-        Speed range of the premise box [m/s]; default :data:`DEFAULT_SPEED_RANGE`.
+        Speed range of the premise box [m/s]; default the vehicle's design range
+        (:attr:`ptw_env.vehicle.Vehicle.control_range`; :data:`DEFAULT_SPEED_RANGE` for the reference scooter).
     phi_max : float
         Roll bound of the premise box [rad] (default 45 deg).
     options : DesignOptions, optional
@@ -1083,8 +1086,8 @@ def design(
         raise DesignOptionError(f"options must be a DesignOptions, got {type(options).__name__}")
     if solver not in SOLVERS:
         raise DesignOptionError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-    ts = build_ts_model(vehicle, DEFAULT_SPEED_RANGE[0] if vmin is None else vmin,
-                        DEFAULT_SPEED_RANGE[1] if vmax is None else vmax, phi_max)
+    v_design = split_model(vehicle)[0].control_range  # default: the vehicle's design range
+    ts = build_ts_model(vehicle, v_design[0] if vmin is None else vmin, v_design[1] if vmax is None else vmax, phi_max)
     aug = augment(ts)
     key = cache_key(ts, options, solver)
     if cache and key in _MEMORY:

@@ -324,8 +324,10 @@ def build_ts_model(
         brings its dynamic effects; only :data:`TS_EXPRESSIBLE_EFFECTS` are
         accepted (module docstring).
     vmin, vmax : float, optional
-        Speed range of the design [m/s]; default the vehicle's valid range.
-        Must lie inside it with ``vmin < vmax``.
+        Speed range of the model [m/s]; default the vehicle's valid range
+        (the LQR's feedforward table uses it so). Must lie inside it with
+        ``vmin < vmax``. :func:`assist.ts_design.design` passes the vehicle's
+        design range (:attr:`ptw_env.vehicle.Vehicle.control_range`).
     phi_max : float
         Roll bound of the premise box [rad], in (0, pi/2); default 45 deg.
 

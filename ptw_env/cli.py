@@ -45,7 +45,27 @@ def command(name: str, help: str, example: str):
 
 
 def check_outputs(args: argparse.Namespace, *names: str) -> None:
-    """Check every output option before the work (:func:`ptw_env.outputs.check_writable`)."""
+    """Check every output option before the work (:func:`ptw_env.outputs.check_writable`), and that no two
+    outputs, and no output and the input log (``args.log`` when it is not an output) or its sidecar, are one file."""
+    def label(n: str) -> str:
+        return "the log's sidecar" if n == "sidecar" else f"--{n.replace('_', '-')}"
+
+    seen: dict[str, str] = {}
+    inputs: dict[str, str] = {}
+    log_in = getattr(args, "log", None) if "log" not in names else None
+    if isinstance(log_in, (str, os.PathLike)):
+        inputs = {os.path.realpath(log_in): "the input log",
+                  os.path.realpath(Path(log_in).with_suffix(".json")): "the input log's sidecar"}
+    for n in names:
+        p = getattr(args, n, None)
+        if p is None:
+            continue
+        key = os.path.realpath(p)
+        if key in inputs:
+            raise CLIError(f"{label(n)}: {p} is {inputs[key]}; write the output elsewhere")
+        if key in seen:
+            raise CLIError(f"{label(n)} and {label(seen[key])} both name {p}: each output needs its own file")
+        seen[key] = n
     for n in names:
         p = getattr(args, n, None)
         if p is not None:
@@ -76,29 +96,76 @@ def write_json(path: str | None, obj: dict[str, Any], overwrite: bool) -> None:
     atomic_write_text(p, text)
 
 
-def reference_scooter_log(log: Any, command: str) -> None:
-    """Refuse a log whose sidecar names another vehicle than the reference scooter, or that
-    steers beyond its lock (:func:`ptw_env.logs.check_against_vehicle`).
+def reference_scooter_log(log: Any, command: str, vehicle: Any = None) -> None:
+    """Refuse a log that is not the reference scooter's (``--vehicle`` naming another vehicle, or the sidecar's
+    vehicle), or that steers beyond its lock (:func:`ptw_env.logs.check_against_vehicle`).
 
     For the commands whose observers are designed on the reference scooter only
     (``estimate``, ``risk``): running them on another vehicle's log would be a silent guess.
     """
+    from .vehicle import REFERENCE_SCOOTER
+
+    v = vehicle_for_log(argparse.Namespace(vehicle=vehicle), log)
+    if v.identity()["model_sha256"] != REFERENCE_SCOOTER.identity()["model_sha256"]:
+        src = "--vehicle" if vehicle is not None else f"the sidecar of {log.path}"
+        raise CLIError(f"{src} names the vehicle {v.name!r}; '{command}' runs observers designed on the reference "
+                       f"scooter only, which would misread another vehicle's log ('ptw-assist diagnose' takes any "
+                       f"vehicle)")
+
+
+def load_vehicle_option(text: str) -> Any:
+    """The vehicle of a ``--vehicle`` text: a preset name or the path of a TOML vehicle file
+    (:func:`ptw_env.vehicle_files.load_vehicle`); a bad one is one :class:`CLIError` naming the option, file and key."""
+    from .vehicle_files import load_vehicle
+
+    try:
+        return load_vehicle(text)
+    except (ValueError, OSError) as exc:
+        raise CLIError(f"--vehicle: {' '.join(str(exc).split())}") from None
+
+
+def add_vehicle_option(p: argparse.ArgumentParser, *, from_log: bool = False) -> None:
+    """Add ``--vehicle NAME_OR_FILE`` (cli.md: every subcommand); ``from_log``: the default is the log
+    sidecar's vehicle (:func:`vehicle_for_log`)."""
+    from .vehicle_files import vehicle_names
+
+    default = "the log sidecar's vehicle, else reference-scooter" if from_log else "reference-scooter"
+    p.add_argument("--vehicle", default=None, metavar="NAME_OR_FILE",
+                   help=f"a vehicle preset ({', '.join(vehicle_names())}) or the path of a TOML vehicle file "
+                        f"(ptw_env.vehicle_files); default {default}")
+
+
+def chosen_vehicle(args: argparse.Namespace) -> Any:
+    """The vehicle of ``--vehicle`` (:func:`add_vehicle_option`), the reference scooter when absent."""
+    from .vehicle import REFERENCE_SCOOTER
+
+    text = getattr(args, "vehicle", None)
+    return REFERENCE_SCOOTER if text is None else load_vehicle_option(text)
+
+
+def vehicle_for_log(args: argparse.Namespace, log: Any) -> Any:
+    """The vehicle a log is read with: ``--vehicle`` if given (refused when the sidecar names another one,
+    both named), else the sidecar's ``vehicle``/``vehicle_file`` (:func:`ptw_env.vehicle_files.vehicle_of_log`),
+    else the reference scooter. The log is then checked against it (:func:`ptw_env.logs.check_against_vehicle`)."""
     from .logs import check_against_vehicle
     from .vehicle import REFERENCE_SCOOTER
     from .vehicle_files import vehicle_of_log
 
     try:
-        v = vehicle_of_log(log.meta, log.path)
+        side = vehicle_of_log(log.meta, log.path)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
-    if v is not None and v.identity()["model_sha256"] != REFERENCE_SCOOTER.identity()["model_sha256"]:
-        raise CLIError(f"{log.path}: the sidecar's vehicle is {v.name!r}; '{command}' runs observers designed on "
-                       f"the reference scooter only, which would misread another vehicle's log "
-                       f"('ptw-assist diagnose' takes any vehicle)")
+    given = None if getattr(args, "vehicle", None) is None else chosen_vehicle(args)
+    if given is not None and side is not None and \
+            given.identity()["model_sha256"] != side.identity()["model_sha256"]:
+        raise CLIError(f"--vehicle {given.name!r} is not the vehicle of {log.path} (its sidecar says {side.name!r}); "
+                       f"drop --vehicle or fix the sidecar")
+    v = given if given is not None else side if side is not None else REFERENCE_SCOOTER
     try:
-        check_against_vehicle(log, v or REFERENCE_SCOOTER)
+        check_against_vehicle(log, v)
     except ValueError as exc:
         raise CLIError(str(exc)) from None
+    return v
 
 
 def write_figure(path: str | os.PathLike, draw: Callable[[Path], Any]) -> None:
@@ -215,6 +282,7 @@ def _build_simulate(p: argparse.ArgumentParser):
     from .scenarios import scenario_names
 
     p.add_argument("--scenario", default="double_lane_change", choices=scenario_names(), help="scenario name")
+    add_vehicle_option(p)
     p.add_argument("--speed", type=SPEED_KMH, default=None, metavar="KMH", help="cruise speed [km/h] where the scenario has one")
     p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE", type=effect_arg,
                    help="an effect of effects.md in the true plant (repeatable)")
@@ -237,8 +305,13 @@ def _build_simulate(p: argparse.ArgumentParser):
         a.sidecar = str(sidecar)
         check_outputs(a, "log", "sidecar", "plot", "json")
         effects = Effects.parse(a.effect)
-        res = ride_scenario(a.scenario, speed_kmh=a.speed, effects=effects, noise_pct=a.noise, seed=a.seed,
-                            rider_noise_nm=a.rider_noise)
+        v = chosen_vehicle(a)
+        try:
+            res = ride_scenario(a.scenario, speed_kmh=a.speed, effects=effects, noise_pct=a.noise, seed=a.seed,
+                                rider_noise_nm=a.rider_noise, vehicle=v)
+        except ValueError as exc:  # e.g. a scenario speed outside this vehicle's range
+            raise CLIError(f"{v.name}: {exc} (--speed takes km/h within "
+                           f"[{3.6 * v.vmin:.1f}, {3.6 * v.vmax:.1f}] for this vehicle)") from None
         save_ride(res, log_path, overwrite=a.overwrite)
         s = res.summary()
         print(f"{s['scenario']}: {s['duration_s']:.2f} s, {s['samples']} samples, "
@@ -248,7 +321,8 @@ def _build_simulate(p: argparse.ArgumentParser):
         if a.plot:
             write_figure(a.plot, lambda f: plot_ride(res, f))
             print(f"figure written to {a.plot}")
-        write_json(a.json, {**s, "log": str(log_path), "effects": effects.to_causes(), "seed": a.seed}, a.overwrite)
+        write_json(a.json, {**s, "log": str(log_path), "effects": effects.to_causes(), "seed": a.seed,
+                            "vehicle": v.identity()}, a.overwrite)
         return 0
 
     return run
@@ -261,9 +335,7 @@ def _build_simulate(p: argparse.ArgumentParser):
     "ptw-assist modes --vehicle sharp1971 --speeds 5,10,20,30,40 --plot modes.png --locus locus.png --json modes.json",
 )
 def _build_modes(p: argparse.ArgumentParser):
-    p.add_argument("--vehicle", default="reference-scooter", metavar="NAME_OR_FILE",
-                   help="a vehicle preset (reference-scooter, sharp1971, cossalter-sport-touring) or the path of a "
-                        "TOML parameter file (ptw_env.vehicle_files); default reference-scooter")
+    add_vehicle_option(p)
     p.add_argument("--speeds", type=speed_list, default=None, metavar="V1,V2,...",
                    help="speeds in m/s (default: 5 speeds evenly across the vehicle's valid range)")
     p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE", type=effect_arg)
@@ -276,12 +348,7 @@ def _build_modes(p: argparse.ArgumentParser):
     def run(a: argparse.Namespace) -> int:
         from .effects import Effects
         from .modes import eigen_analysis, plot_modes
-        from .vehicle_files import load_vehicle
-
-        try:
-            v = load_vehicle(a.vehicle)
-        except ValueError as exc:
-            raise CLIError(f"--vehicle: {exc}") from None
+        v = chosen_vehicle(a)
         check_outputs(a, "plot", "locus", "json")
         if a.speeds is None:
             a.speeds = [round(v.vmin + (v.vmax - v.vmin) * k / 4, 3) for k in range(5)]

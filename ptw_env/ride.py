@@ -21,6 +21,7 @@ from .logs import RideLog, write_log
 from .rider import LQRRider
 from .sensors import CHANNELS, SensorConfig
 from .vehicle import STATE_NAMES
+from .vehicle_files import PRESET_DIR
 
 
 @dataclass
@@ -130,6 +131,9 @@ def ride_scenario(
         "notes": "tau and vx held over each sample (zero-order hold); x_* columns are the true state at t; "
         "vx is the measured (GPS) speed, vx_true the true one.",
     }
+    vfile = env.vehicle.provenance.get("file")
+    if vfile and Path(vfile).resolve().parent != PRESET_DIR:  # a user's vehicle file: name it (logs.md)
+        meta["vehicle_file"] = str(Path(vfile).resolve())
     log = RideLog(t=cols["t"], columns=cols, meta=meta, path=None)
     env.close()
     return RideResult(log=log, states=X, phi_ref=np.asarray(refs), fell=fell, reason=reason, scenario=env.scenario.name)

@@ -360,6 +360,7 @@ def sharp_vehicle(
     vmax: float,
     provenance: Mapping[str, str] | None = None,
     steer_lock: float = math.pi / 2,
+    design_range: tuple[float, float] | None = None,
 ) -> Vehicle:
     """The :class:`~ptw_env.vehicle.Vehicle` of a Sharp (1971) parameter set (Table V formulas).
 
@@ -394,7 +395,8 @@ def sharp_vehicle(
     prov.update(dict(provenance or {}))
     prov.setdefault("parameters", ", ".join(f"{k} = {v:.6g}" for k, v in asdict(params).items()))
     return Vehicle(name=name, E=E, A0=A0, A1=A1, B=B, mass=params.mass, tires=params.tire_parameters(),
-                   vmin=float(vmin), vmax=float(vmax), provenance=prov, steer_lock=float(steer_lock))
+                   vmin=float(vmin), vmax=float(vmax), provenance=prov, steer_lock=float(steer_lock),
+                   design_range=design_range)
 
 
 __all__ = ["LOAD_TOLERANCE", "ParameterSpec", "SPECS", "SharpParameterError", "SharpParameters", "rule_violation",

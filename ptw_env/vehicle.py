@@ -129,6 +129,14 @@ class Vehicle:
         bound of any front wheel (beyond it the wheel would face backwards), not a
         number of any vehicle; a vehicle file gives its own in ``[limits] steer_lock``.
         Not part of the model (it changes no equation) nor of :meth:`identity`'s hash.
+    design_range : tuple of float or None
+        ``(vmin, vmax)`` [m/s] over which speed-scheduled designs (the TS
+        controller's premise box, the HOSM structural analysis) are made by
+        default: one common Lyapunov matrix rarely covers the whole valid range
+        (the slow, unstable end is the hard one). ``None``: the valid range.
+        The reference scooter's is 8-33 m/s (the controller issue's wide range);
+        a vehicle file gives its own in ``[speed_range] design_vmin, design_vmax``.
+        Not part of :meth:`identity`'s hash. See :attr:`control_range`.
     """
 
     name: str
@@ -142,6 +150,7 @@ class Vehicle:
     vmax: float = 40.0
     provenance: Mapping[str, str] = field(default_factory=dict)
     steer_lock: float = math.pi / 2
+    design_range: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         for nm, shape in (("E", (8, 8)), ("A0", (8, 8)), ("A1", (8, 8)), ("B", (8,))):
@@ -155,6 +164,12 @@ class Vehicle:
             raise ValueError(f"Vehicle speed range must satisfy 0 < vmin < vmax, got [{self.vmin}, {self.vmax}]")
         if not (isinstance(self.steer_lock, (int, float)) and 0 < self.steer_lock <= math.pi / 2):
             raise ValueError(f"Vehicle.steer_lock must be an angle in (0, pi/2] rad, got {self.steer_lock!r}")
+        if self.design_range is not None:
+            lo, hi = (float(x) for x in self.design_range)
+            if not (self.vmin <= lo < hi <= self.vmax):
+                raise ValueError(f"Vehicle.design_range must satisfy vmin <= lo < hi <= vmax = [{self.vmin}, "
+                                 f"{self.vmax}] m/s, got {self.design_range!r}")
+            object.__setattr__(self, "design_range", (lo, hi))
         if np.linalg.cond(self.E) > 1e10:
             raise ValueError("Vehicle.E is singular (or nearly): the mass matrix must be invertible")
         object.__setattr__(self, "provenance", MappingProxyType(dict(self.provenance)))
@@ -164,8 +179,13 @@ class Vehicle:
         return (
             Vehicle,
             (self.name, self.E, self.A0, self.A1, self.B, self.mass, self.tires, self.vmin, self.vmax,
-             dict(self.provenance), self.steer_lock),
+             dict(self.provenance), self.steer_lock, self.design_range),
         )
+
+    @property
+    def control_range(self) -> tuple[float, float]:
+        """Default speed range [m/s] of speed-scheduled designs: :attr:`design_range`, else ``(vmin, vmax)``."""
+        return self.design_range if self.design_range is not None else (float(self.vmin), float(self.vmax))
 
     @functools.cached_property
     def fastest_eigenvalue(self) -> float:
@@ -300,6 +320,7 @@ def reference_scooter() -> Vehicle:
         tires=TireParameters(),
         vmin=3.0,
         vmax=40.0,
+        design_range=(8.0, 33.0),
         provenance={
             "E, A0, A1, B": "Fouka, Nehaoua, Arioui, Table IV (BikeSim Scooter Big Baseline), as in shared/spec/model.md",
             "a71": "printed -5319 vx, taken +5319 vx (model.md: positive camber stiffness reproduces a72 to 0.3 %)",
@@ -308,6 +329,7 @@ def reference_scooter() -> Vehicle:
             "tires": "derived from rows 7-8 with sigma = 0.2 m (model.md, derived nominal tire parameters)",
             "Fzf, Fzr": "M g arms from a47, a48 (model.md)",
             "vmin, vmax": "ptw-assist choice: 3-40 m/s (the tire modes reach |lambda| ~ 200 rad/s at 40 m/s)",
+            "design_range": "8-33 m/s, the wide range of the TS controller issue (10-20 m/s in Dabladji et al.)",
         },
     )
 

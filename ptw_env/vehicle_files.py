@@ -24,7 +24,9 @@ File format
 
 Sections and their keys (which keys a layout needs: :data:`ptw_env.sharp_geometry.LAYOUTS`):
 
-* ``[speed_range]``: ``vmin``, ``vmax`` [m/s], the valid forward-speed range;
+* ``[speed_range]``: ``vmin``, ``vmax`` [m/s], the valid forward-speed range, and optionally
+  ``design_vmin``, ``design_vmax`` [m/s] (both or neither, within it), the default range of
+  speed-scheduled designs (:attr:`ptw_env.vehicle.Vehicle.design_range`);
 * ``[geometry]``: ``a, b, e, f, h, j, trail_normal, trail, caster, wheelbase, x_G, h_G``;
 * ``[masses]``: ``M_f, M_r, M``;
 * ``[inertias]``: ``I_fx, I_fz, I_rx, I_rz, C_rxz, I_xx, I_zz, C_xz``;
@@ -81,7 +83,7 @@ class VehicleFileError(ValueError):
 
 #: Section of each parameter key.
 SECTIONS: dict[str, tuple[str, ...]] = {
-    "speed_range": ("vmin", "vmax"),
+    "speed_range": ("vmin", "vmax", "design_vmin", "design_vmax"),
     "geometry": ("a", "b", "e", "f", "h", "j", "trail_normal", "trail", "caster", "wheelbase", "x_G", "h_G"),
     "masses": ("M_f", "M_r", "M"),
     "inertias": ("I_fx", "I_fz", "I_rx", "I_rz", "C_rxz", "I_xx", "I_zz", "C_xz"),
@@ -92,6 +94,7 @@ SECTIONS: dict[str, tuple[str, ...]] = {
 }
 #: Keys that are not Table V parameters: (unit, meaning); checked here, not by ptw_env.sharp.SPECS.
 _OWN_KEYS = {"vmin": ("m/s", "a forward speed"), "vmax": ("m/s", "a forward speed"),
+             "design_vmin": ("m/s", "a forward speed"), "design_vmax": ("m/s", "a forward speed"),
              "steer_lock": ("rad", "the steering lock, in (0, pi/2]")}
 _SECTION_OF = {k: sec for sec, keys in SECTIONS.items() for k in keys}
 _TOP_LEVEL = ("name", "description", "layout", "references")
@@ -112,6 +115,9 @@ _CONVERSIONS = {
 }
 
 #: Preset name -> packaged file (``None``: the reference scooter's matrix form).
+#: Folder of the preset vehicle files (a vehicle from there is named by its preset name in a sidecar).
+PRESET_DIR = Path(str(resources.files("ptw_env.vehicles"))).resolve()
+
 PRESETS: dict[str, str | None] = {
     REFERENCE_SCOOTER.name: None,
     "sharp1971": "sharp1971.toml",
@@ -227,6 +233,14 @@ class _Reader:
             raise self.fail("", f"layout {layout!r}: " + "; ".join(problems))
         if not values["vmin"] < values["vmax"]:
             raise self.fail("[speed_range]", f"vmin = {values['vmin']:g} m/s must be below vmax = {values['vmax']:g} m/s")
+        design = [k for k in ("design_vmin", "design_vmax") if k in values]
+        if len(design) == 1:
+            other = "design_vmax" if design[0] == "design_vmin" else "design_vmin"
+            raise self.fail("[speed_range]", f"{design[0]} given without {other} (both or neither)")
+        if design and not values["vmin"] <= values["design_vmin"] < values["design_vmax"] <= values["vmax"]:
+            raise self.fail("[speed_range]", f"design_vmin = {values['design_vmin']:g}, design_vmax = "
+                                             f"{values['design_vmax']:g} m/s must satisfy vmin <= design_vmin < "
+                                             f"design_vmax <= vmax = [{values['vmin']:g}, {values['vmax']:g}]")
         if refs:
             prov["references"] = "; ".join(refs)
         return name, layout, values, prov, description
@@ -311,8 +325,9 @@ def load_vehicle(name_or_path: str | Path) -> Vehicle:
     if path is None:
         return REFERENCE_SCOOTER
     params, name, values, prov = _load(path)
+    design = (values["design_vmin"], values["design_vmax"]) if "design_vmin" in values else None
     return sharp_vehicle(params, name=name, vmin=values["vmin"], vmax=values["vmax"], provenance=prov,
-                         steer_lock=values.get("steer_lock", math.pi / 2))
+                         steer_lock=values.get("steer_lock", math.pi / 2), design_range=design)
 
 
 def _normalised(name: str) -> str:
@@ -371,5 +386,5 @@ def vehicle_of_log(meta: Mapping[str, Any], log_path: str | Path | None = None) 
         raise VehicleFileError(f"{where}: 'vehicle' = {vname!r}: {exc}") from None
 
 
-__all__ = ["PRESETS", "SECTIONS", "UNITS", "VehicleFileError", "load_parameters", "load_vehicle", "vehicle_names",
+__all__ = ["PRESETS", "PRESET_DIR", "SECTIONS", "UNITS", "VehicleFileError", "load_parameters", "load_vehicle", "vehicle_names",
            "vehicle_of_log"]
