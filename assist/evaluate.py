@@ -2,15 +2,15 @@
 
 Controllers (``--controller`` of ``ptw-assist evaluate``):
 
-* ``ts``: the Takagi-Sugeno observer-based controller (:mod:`assist.ts_controller`),
+* ``ts``: the Takagi-Sugeno observer-based controller (:mod:`assist.control.ts_controller`),
   from the noisy yaw rate, roll rate, steering angle and rate only;
 * ``ts_state``: the same TS design's state feedback on the *true* state
-  (observer bypassed, :class:`assist.ts_controller.TSStateFeedback`): the
+  (observer bypassed, :class:`assist.control.ts_controller.TSStateFeedback`): the
   separation bound of the TS design, i.e. what the TS controller would do
   with a perfect observer;
-* ``lqg``: gain-scheduled Kalman filter + LQR (:mod:`assist.lqg`), same measurements;
+* ``lqg``: gain-scheduled Kalman filter + LQR (:mod:`assist.control.lqg`), same measurements;
 * ``lqr``: the full-state bound: gain-scheduled discrete LQR for roll tracking
-  (:class:`assist.lqg.TrackingLQR`, Bryson weights on the issue's 1 deg target)
+  (:class:`assist.control.lqg.TrackingLQR`, Bryson weights on the issue's 1 deg target)
   with the TS controller's reference pre-filter and model-inverse feedforward,
   on the *true* state ``info["state"]`` and speed (same gains as the LQG).
   Not the simulated rider's gentler LQR (:mod:`ptw_env.rider`);
@@ -22,7 +22,7 @@ Every controller is designed on the environment's *prior* model
 (``env.get_prior()``, its dynamic ``prior_effects`` included), never on the
 true plant, and sees the observation vector of :class:`ptw_env.env.PTWRollEnv`.
 The model-based controllers (ts, ts_state, lqg, lqr) accept the prior effects
-the TS model expresses (:data:`assist.ts_model.TS_EXPRESSIBLE_EFFECTS`) and
+the TS model expresses (:data:`assist.control.ts_model.TS_EXPRESSIBLE_EFFECTS`) and
 raise :class:`EvaluationError` for the others (a constant term, tire
 saturation, and the sensor effects their observers do not model) rather than
 ignore them.
@@ -65,7 +65,7 @@ class Controller(Protocol):
 
 def _prior_model(env: PTWRollEnv, controller: str, observer: bool = True):
     """The prior plant a model-based controller is designed on, or :class:`EvaluationError` (module docstring)."""
-    from .ts_model import UnsupportedEffectError, split_model
+    from assist.control.ts_model import UnsupportedEffectError, split_model
 
     prior = env.get_prior()
     try:
@@ -90,8 +90,8 @@ class TSAdapter:
     name = "ts"
 
     def __init__(self, env: PTWRollEnv, vmin: float | None = None, vmax: float | None = None) -> None:
-        from .ts_controller import TSObserverController
-        from .ts_design import design
+        from assist.control.ts_controller import TSObserverController
+        from assist.control.ts_design import design
 
         self.design = design(_prior_model(env, self.name), vmin=vmin, vmax=vmax)
         self.ctrl = TSObserverController(self.design, tau_max=env.tau_max)  # fed the torque the plant gets
@@ -111,7 +111,7 @@ class LQGAdapter:
     name = "lqg"
 
     def __init__(self, env: PTWRollEnv) -> None:
-        from .lqg import LQGController
+        from assist.control.lqg import LQGController
 
         self.ctrl = LQGController(_prior_model(env, self.name), env.sensor_config, env.dt, env.tau_max)
 
@@ -127,12 +127,12 @@ class LQGAdapter:
 
 
 class FullStateLQR:
-    """:class:`assist.lqg.TrackingLQR` on the true state (``info["state"]``) and true speed: the bound."""
+    """:class:`assist.control.lqg.TrackingLQR` on the true state (``info["state"]``) and true speed: the bound."""
 
     name = "lqr"
 
     def __init__(self, env: PTWRollEnv) -> None:
-        from .lqg import TrackingLQR
+        from assist.control.lqg import TrackingLQR
 
         self.ctrl = TrackingLQR(_prior_model(env, self.name, observer=False), env.dt, env.tau_max)
 
@@ -148,13 +148,13 @@ class FullStateLQR:
 
 
 class TSStateAdapter(FullStateLQR):
-    """:class:`assist.ts_controller.TSStateFeedback` (TS gains, observer bypassed) on the true state and speed."""
+    """:class:`assist.control.ts_controller.TSStateFeedback` (TS gains, observer bypassed) on the true state and speed."""
 
     name = "ts_state"
 
     def __init__(self, env: PTWRollEnv, vmin: float | None = None, vmax: float | None = None) -> None:
-        from .ts_controller import TSStateFeedback
-        from .ts_design import design
+        from assist.control.ts_controller import TSStateFeedback
+        from assist.control.ts_design import design
 
         self.design = design(_prior_model(env, self.name, observer=False), vmin=vmin, vmax=vmax)
         self.ctrl = TSStateFeedback(self.design)

@@ -1,113 +1,14 @@
-"""``ptw-assist risk LOG.csv [--plot OUT.png] [--json FILE]``: the risk warning offline on a ride log (cli.md).
+"""Moved to :mod:`assist.cli.risk`; this path re-exports it for one release (DeprecationWarning)."""
 
-Registered into the one command line of :mod:`ptw_env.cli` (``build_parser``
-imports this module). The log goes through :func:`assist.risk.offline.assess_log`
-(the adaptive observer, then the risk monitor); with a ``kappa`` column the
-road ahead is previewed from it, otherwise only the curve being ridden is
-known. ``--json`` holds ``{"mu_hat_final", "warnings": [{"t", "level",
-"reason", "until"}], ...}``. A simulated log with truth columns also gets
-the true friction and the true saturation instants (``|F_ss| >= 0.95 Fmax``)
-in the summary and the figure; the assessment itself never reads them.
-"""
+import warnings as _warnings
+from typing import Any as _Any
 
-from __future__ import annotations
+from assist.cli import risk as _new
+from assist.cli.risk import *  # noqa: F401,F403
 
-import argparse
-
-from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure, add_vehicle_option
+_warnings.warn("assist.risk_cli moved to assist.cli.risk; the old path goes in the next release",
+               DeprecationWarning, stacklevel=2)
 
 
-@command(
-    "risk",
-    "risk warning offline on a ride log: friction estimate, utilisation, safe lean and curve speed, warnings",
-    "ptw-assist simulate --scenario urban --noise 5 --effect tire_saturation:mu_peak=0.9 --log ride.csv && "
-    "ptw-assist risk ride.csv --plot risk.png --json risk.json",
-)
-def _build(p: argparse.ArgumentParser):
-    p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md); an extra 'kappa' column [1/m] is the map ahead")
-    add_vehicle_option(p, from_log=True)  # only the reference scooter is accepted (its observers)
-    p.add_argument("--noise", type=NOISE_PCT, default=None, metavar="PCT",
-                   help="sensor noise in percent of range the observer is designed for "
-                        "(default: the sidecar's noise_pct, else 5)")
-    p.add_argument("--no-map", action="store_true", help="ignore a kappa column (no preview of the road ahead)")
-    p.add_argument("--confirm-sigmas", type=number(0, 10), default=None, metavar="K",
-                   help="caution also when the grip is not confirmed at K sigma (0-10, default 2; 0: the estimate alone)")
-    p.add_argument("--road-bank", type=road_bank_or_auto, default="auto", metavar="RAD|auto",
-                   help="bank (cross-fall) of the road: 'auto' (default) estimates it on line from the lateral "
-                        "acceleration and the yaw rate on straights; a number in rad fixes it (e.g. from "
-                        "'ptw-assist diagnose'; 0: level)")
-    p.add_argument("--plot", default=None, metavar="OUT.png", help="timeline figure")
-    p.add_argument("--json", default=None, metavar="FILE")
-    p.add_argument("--overwrite", action="store_true", help="replace existing output files")
-
-    def run(a: argparse.Namespace) -> int:
-        import math
-
-        import numpy as np
-
-        from ptw_env.logs import read_log
-
-        from .risk.evaluation import truth_from_log
-        from .risk.monitor import RiskConfig, RiskMonitor
-        from .risk.offline import assess_log, plot_risk
-        from .risk.pipeline import RiskPipeline, default_estimator
-
-        check_outputs(a, "plot", "json")
-        log = read_log(a.log)
-        reference_scooter_log(log, "risk", a.vehicle)
-        dt = float(log.dt)
-        pct = a.noise
-        if pct is None:
-            v = (log.meta or {}).get("noise_pct") if isinstance(log.meta, dict) else None
-            pct = float(v) if isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 else 5.0
-        cfg = RiskConfig() if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)
-        try:
-            est = default_estimator(pct, dt)
-        except ValueError as exc:
-            raise CLIError(f"{a.log}: the adaptive observer cannot be designed for this log ({exc})") from None
-        pipe = RiskPipeline(est, RiskMonitor(cfg), road_bank=a.road_bank)
-        if pipe.bank_estimate is not None:
-            pipe.bank_estimate.record = True  # the estimates, for the report
-        res = assess_log(log, pipe, use_kappa=not a.no_map)
-        banks = [] if pipe.bank_estimate is None else pipe.bank_estimate.history
-        js = res.to_json()
-        js["log"] = str(a.log)
-        js["noise_pct_assumed"] = pct
-        js["road_bank_rad"] = a.road_bank
-        if banks:
-            b = np.asarray(banks)
-            js["road_bank_estimate_rad"] = {"median": float(np.median(b)), "p5": float(np.percentile(b, 5)),
-                                            "p95": float(np.percentile(b, 95)), "final": float(b[-1])}
-        last = res.assessments[-1]
-        truth = truth_from_log(log)
-        print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; road ahead: {res.path_source}")
-        if banks:
-            e = js["road_bank_estimate_rad"]
-            print(f"road bank estimated on line: median {e['median']:.4f} rad (5-95 %: {e['p5']:.4f} to "
-                  f"{e['p95']:.4f}), final {e['final']:.4f}")
-        print(f"friction at the end: mu_hat = {last.mu_hat:.2f} +- {last.mu_std:.2f} ({last.friction_status}); "
-              f"max safe lean {math.degrees(last.max_safe_lean):.0f} deg; "
-              f"time in caution {js['time_in_level_s']['caution']:.1f} s, danger {js['time_in_level_s']['danger']:.1f} s")
-        if truth is not None:
-            mu_t, util, events = truth
-            js["truth"] = {"mu_final": float(mu_t[-1]), "max_utilisation": [float(u) for u in util.max(axis=0)],
-                           "saturation_t": [float(x) for x in events]}
-            print(f"truth (simulator): friction at the end {mu_t[-1]:.2f}; peak |F_ss|/Fmax front "
-                  f"{util[:, 0].max():.2f}, rear {util[:, 1].max():.2f}; saturation at "
-                  f"{', '.join(f'{x:.2f}' for x in events) + ' s' if len(events) else 'no instant'}")
-        w = js["warnings"]
-        print(f"{len(w)} warning(s): {js['counts']['caution']} caution, {js['counts']['danger']} danger")
-        for e in w[:10]:
-            print(f"  t = {e['t']:7.2f} - {e['until']:7.2f} s  {e['reason']}")
-        if len(w) > 10:
-            print(f"  ... {len(w) - 10} more in --json")
-        if a.plot:
-            write_figure(a.plot, lambda f: plot_risk(
-                res, f, mu_true=None if truth is None else truth[0],
-                true_utilisation=None if truth is None else truth[1],
-                saturation_t=None if truth is None else truth[2], title=f"risk warning: {a.log}"))
-            print(f"figure written to {a.plot}")
-        write_json(a.json, js, a.overwrite)
-        return 0
-
-    return run
+def __getattr__(name: str) -> _Any:  # every other name of the module, as before (PEP 562)
+    return getattr(_new, name)

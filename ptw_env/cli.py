@@ -168,6 +168,14 @@ def vehicle_for_log(args: argparse.Namespace, log: Any) -> Any:
     return v
 
 
+def check_speeds_in_vehicle(speeds: Sequence[float] | None, vehicle: Any, option: str = "--speeds") -> None:
+    """Refuse speeds [m/s] outside the vehicle's valid range (one :class:`CLIError` naming them)."""
+    bad = [s for s in (speeds or []) if not (vehicle.vmin <= s <= vehicle.vmax)]
+    if bad:
+        raise CLIError(f"{option}: {bad} m/s outside the valid range [{vehicle.vmin}, {vehicle.vmax}] m/s of "
+                       f"{vehicle.name}")
+
+
 def write_figure(path: str | os.PathLike, draw: Callable[[Path], Any]) -> None:
     """Draw a figure into a temporary file beside ``path`` and move it there when complete."""
     with atomic_path(path) as tmp:
@@ -352,9 +360,7 @@ def _build_modes(p: argparse.ArgumentParser):
         check_outputs(a, "plot", "locus", "json")
         if a.speeds is None:
             a.speeds = [round(v.vmin + (v.vmax - v.vmin) * k / 4, 3) for k in range(5)]
-        bad = [s for s in a.speeds if not (v.vmin <= s <= v.vmax)]
-        if bad:
-            raise CLIError(f"--speeds: {bad} m/s outside the valid range [{v.vmin}, {v.vmax}] m/s of {v.name}")
+        check_speeds_in_vehicle(a.speeds, v)
         effects = Effects.parse(a.effect)
         res = eigen_analysis(v, speeds=a.speeds, effects=effects or None)
         js = res.to_json()

@@ -1,8 +1,8 @@
 """Stable, marginal or unstable: eigenvalues, poles and zeros against the imaginary axis.
 
 One classification, with one documented tolerance, for every caller: the invariant zeros of the
-structural analysis (``assist.structure``: strong detectability), the observability report and
-the HOSM design (``assist.observability``, ``assist.hosm``), and the stability verdicts of the
+structural analysis (``assist.unknown_input.structure``: strong detectability), the observability report and
+the HOSM design (``assist.unknown_input.observability``, ``assist.unknown_input.hosm``), and the stability verdicts of the
 modal analysis (:mod:`ptw_env.modes`: where the weave's real part changes sign).
 
 A computed eigenvalue or zero carries round-off of the order of the machine precision times the

@@ -28,9 +28,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from assist.adaptive_design import design_adaptive_observer  # noqa: E402
-from assist.adaptive_observer import AdaptiveObserver  # noqa: E402
-from assist.identification import JointEKF  # noqa: E402
+from assist.estimation.adaptive_design import design_adaptive_observer  # noqa: E402
+from assist.estimation.adaptive_observer import AdaptiveObserver  # noqa: E402
+from assist.estimation.identification import JointEKF  # noqa: E402
 from ptw_env.env import PTWRollEnv  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
 from _outputs import add_overwrite, output_file  # noqa: E402  (scripts/_outputs.py)

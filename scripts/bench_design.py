@@ -7,10 +7,10 @@ Measures, in one run:
   cleared;
 * the same two theorem problems (same scaled data, same options: the
   problems the Clarabel design solved) with Clarabel and with SCS at its
-  default tolerance, in the same run (:func:`assist.ts_design.compare_solver`):
+  default tolerance, in the same run (:func:`assist.control.ts_design.compare_solver`):
   wall time, solver status, whether the returned point passes the numpy
   certificate, and the SCS / Clarabel time ratio;
-* one :meth:`assist.ts_controller.TSObserverController.update` in
+* one :meth:`assist.control.ts_controller.TSObserverController.update` in
   microseconds, against one :meth:`ptw_env.integrate.Stepper.step` and one
   ``PTWRollEnv.step`` (when the environment is importable).
 
@@ -31,8 +31,8 @@ import time
 
 import numpy as np
 
-from assist import ts_design
-from assist.ts_controller import TSObserverController
+from assist.control import ts_design
+from assist.control.ts_controller import TSObserverController
 from _outputs import add_overwrite, output_file  # noqa: E402  (scripts/_outputs.py)
 
 

@@ -8,7 +8,7 @@ simulated ``shared/data/friction_urban.csv``:
 * convergence: error at 15 s, time after which each estimate stays within 5 % of the truth;
 * Table II: state RMSE % (100 RMSE / range of the true signal over the ride) of
   phi, delta, phi_dot, r, ay for every variation (adaptive observer and EKF);
-* a friction drop mid-ride (stepper swapped, :func:`assist.identification.simulate_friction_drop`);
+* a friction drop mid-ride (stepper swapped, :func:`assist.estimation.identification.simulate_friction_drop`);
 * the design: equality residual vs the certified Lipschitz band, the paper's
   law's averaged rates, observability ranks before and after the virtual sensor.
 
@@ -33,12 +33,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from assist.adaptive_design import (AdaptiveDesignError, default_design, design_adaptive_observer,  # noqa: E402
+from assist.estimation.adaptive_design import (AdaptiveDesignError, default_design, design_adaptive_observer,  # noqa: E402
                                     kalman_design)
-from assist.adaptive_observer import AdaptiveObserver, adaptation_gain  # noqa: E402
-from assist.identifiability import ride_information  # noqa: E402
-from assist.identification import JointEKF, estimate, simulate_friction_drop  # noqa: E402
-from assist.lpv_model import THETA_NAMES, build_lpv_model, observability_table  # noqa: E402
+from assist.estimation.adaptive_observer import AdaptiveObserver, adaptation_gain  # noqa: E402
+from assist.estimation.identifiability import ride_information  # noqa: E402
+from assist.estimation.identification import JointEKF, estimate, simulate_friction_drop  # noqa: E402
+from assist.estimation.lpv_model import THETA_NAMES, build_lpv_model, observability_table  # noqa: E402
 from ptw_env.logs import read_log  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
 from ptw_env.sensors import SensorConfig  # noqa: E402
@@ -329,7 +329,7 @@ def main(argv=None) -> int:
     for c in cases:
         L.append(f"| {c['scenario']} | {c['variation']} | {c['noise_pct']:g} | " + " | ".join(
             " ".join(fmt_pct(e) for e in c["methods"][m]["rel_error_at_15s"]) for m in METHODS) + " |")
-    L += ["", f"## Cramér-Rao bound of the estimate scored above (assist.identifiability): 1-sigma, % of the truth", "",
+    L += ["", f"## Cramér-Rao bound of the estimate scored above (assist.estimation.identifiability): 1-sigma, % of the truth", "",
           f"Over the data the estimators have had when scored: from t = 0 (they run from the start of the log) to "
           f"{TARGET_S:g} s after riding starts. Rows without noise have no bound (it is zero). ", "",
           "The most optimistic bound (exact model, known torque, no process noise): no unbiased estimator without prior "

@@ -3,7 +3,7 @@
 Every episode runs through ``env.step`` (:func:`assist.evaluate.run_episode`),
 the TS and LQG controllers seeing only the noisy yaw rate, roll rate,
 steering angle and rate; the two full-state bounds see the true state:
-``lqr`` (:class:`assist.lqg.TrackingLQR`, the bound of the issue: tracking
+``lqr`` (:class:`assist.control.lqg.TrackingLQR`, the bound of the issue: tracking
 LQR with the TS controller's reference feedforward) and ``ts_state`` (the
 TS design's gains on the true state, observer bypassed: what the TS
 controller would do with a perfect observer). Grid:

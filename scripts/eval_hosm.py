@@ -37,13 +37,13 @@ inertia) is run as a second, physical variant. The observer is always the
 nominal design.
 
 Lipschitz constants: ``--tune`` (default) re-runs the coordinate-descent tuning
-behind :data:`assist.hosm.DEFAULT_LIPSCHITZ` on a *training* ride (seed
+behind :data:`assist.unknown_input.hosm.DEFAULT_LIPSCHITZ` on a *training* ride (seed
 ``--train-seed``, different from the evaluation seed) and reports it; the
 evaluation itself uses the library defaults, so that the numbers are those a
 user gets.
 
 TS comparison: the Takagi-Sugeno observer of the controller issue
-(:mod:`assist.ts_design`), run open loop on the same logs with its own
+(:mod:`assist.control.ts_design`), run open loop on the same logs with its own
 measurements (``yaw_rate, roll_rate, delta, delta_rate``) and the *known*
 torque from the log (the controller knows its torque); it has more information
 than the UIHOSMO, which does not use the torque.
@@ -59,7 +59,7 @@ import time
 
 import numpy as np
 
-from assist.hosm import (
+from assist.unknown_input.hosm import (
     DEFAULT_LIPSCHITZ,
     PAPER_LIPSCHITZ,
     HOSMConfig,
@@ -69,7 +69,7 @@ from assist.hosm import (
     measurements_from_log,
     run_observer,
 )
-from assist.observability import format_report, observability_report, plot_report
+from assist.unknown_input.observability import format_report, observability_report, plot_report
 from ptw_env.ride import ride_scenario
 from ptw_env.sensors import SensorConfig
 from ptw_env.vehicle import REFERENCE_SCOOTER, STATE_NAMES, STATE_UNITS
@@ -466,7 +466,7 @@ def main(argv=None) -> int:
 
     # 9. TS observer comparison ---------------------------------------------------
     if not args.no_ts:
-        from assist.ts_design import design as ts_design
+        from assist.control.ts_design import design as ts_design
 
         t0 = time.time()
         tsd = ts_design()

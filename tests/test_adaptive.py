@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assist.adaptive_design import (
+from assist.estimation.adaptive_design import (
     AdaptiveDesignError,
     AdaptiveDesignOptionError,
     AdaptiveDesignOptions,
     default_design,
     design_adaptive_observer,
 )
-from assist.adaptive_observer import AdaptiveObserver, ObserverInputError, adaptation_gain
-from assist.identification import simulate_friction_drop
-from assist.lpv_model import STATE_SCALE, build_lpv_model
+from assist.estimation.adaptive_observer import AdaptiveObserver, ObserverInputError, adaptation_gain
+from assist.estimation.identification import simulate_friction_drop
+from assist.estimation.lpv_model import STATE_SCALE, build_lpv_model
 from ptw_env import simulate
 from ptw_env.dynamics import compile_plant
 from ptw_env.vehicle import DELTA, PHI
@@ -143,7 +143,7 @@ def test_update_and_run_agree(design, drop_log):
 
 
 def run_vx(log):
-    from assist.adaptive_observer import gps_interpolate
+    from assist.estimation.adaptive_observer import gps_interpolate
 
     return gps_interpolate(log.t, log.columns["vx"])
 
@@ -164,7 +164,7 @@ def test_stiffness_follows_a_friction_drop(design, drop_log):
 
 @pytest.mark.xfail(strict=True, reason="the paper's law (eq. 18): the common stiffness scale is nearly "
                    "unobservable through T C x~ (Gamma H_bar rates spread over four decades); see "
-                   "assist.adaptive_observer")
+                   "assist.estimation.adaptive_observer")
 def test_paper_law_follows_a_friction_drop(design, drop_log):
     log, truth = drop_log
     run = AdaptiveObserver(design, law="paper").run_log(log)
@@ -247,7 +247,7 @@ def test_design_on_another_speed_range():
 # ---------------------------------------------------------------- Kalman gains, coarser parametrisations
 @pytest.fixture(scope="module")
 def kdesign():
-    from assist.adaptive_design import kalman_design
+    from assist.estimation.adaptive_design import kalman_design
 
     return kalman_design()
 

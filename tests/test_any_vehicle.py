@@ -107,7 +107,7 @@ def test_the_ts_controller_tracks_on_another_vehicle(tmp_path, capsys):
 def test_without_the_torque_limit_the_observer_winds_up_on_sharp1971():
     """The same design, the observer fed the unclipped torque: it diverges (the clipped one above does not)."""
     from assist.evaluate import TSAdapter, run_episode
-    from assist.ts_controller import TSObserverController
+    from assist.control.ts_controller import TSObserverController
 
     class Unclipped(TSAdapter):
         def __init__(self, env):

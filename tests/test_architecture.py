@@ -1,7 +1,7 @@
 """Import rules of the code base, checked on the source (AST), every import counted (also inside functions).
 
 * ``ptw_env`` (the simulator) never imports ``assist``;
-* no library module imports the command line (``ptw_env.cli``, ``assist.cli``, ``assist.commands``,
+* no library module imports the command line (``ptw_env.cli``, ``assist.cli``, ``assist.cli.control``,
   ``assist.*_cli``); only command-line modules do;
 * the families of ``assist`` import one another only along the stated arrows (:data:`ARROWS`);
 * no name starting with an underscore is imported across top-level packages;
@@ -21,27 +21,35 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("ptw_env", "assist")
 
-#: Family of each module of ``assist`` (the first two dotted parts decide: ``assist.risk.x`` -> risk).
+#: Modules kept at their pre-1.0 paths for one release (each re-exports its new module with a DeprecationWarning).
+COMPAT = ("assist.ts_model", "assist.ts_design", "assist.ts_controller", "assist.lqg", "assist.lpv_model",
+          "assist.adaptive_design", "assist.adaptive_observer", "assist.identifiability", "assist.identification",
+          "assist.structure", "assist.observability", "assist.differentiator", "assist.hosm", "assist.commands",
+          "assist.diagnose_cli", "assist.estimate_cli", "assist.risk_cli", "assist.rl_cli")
+#: Family of each module of ``assist``: its folder (``assist.risk.x`` -> risk), the evaluation harness, the
+#: command line, and the old paths.
 FAMILIES = {
-    "control": ("assist.ts_model", "assist.ts_discrete", "assist.ts_design", "assist.ts_controller", "assist.lqg"),
-    "estimation": ("assist.lpv_model", "assist.adaptive_design", "assist.adaptive_observer",
-                   "assist.identifiability", "assist.identification"),
-    "unknown_input": ("assist.structure", "assist.observability", "assist.differentiator", "assist.hosm"),
+    "control": ("assist.control",),
+    "estimation": ("assist.estimation",),
+    "unknown_input": ("assist.unknown_input",),
     "rl": ("assist.rl", "assist.policies"),
     "risk": ("assist.risk",),
     "diagnose": ("assist.diagnose",),
     "evaluate": ("assist.evaluate",),
-    "cli": ("assist.cli", "assist.commands", "assist.diagnose_cli", "assist.estimate_cli", "assist.risk_cli",
-            "assist.rl_cli"),
+    "cli": ("assist.cli",),
+    "compat": COMPAT,
 }
 #: Which family may import which (besides itself and ``ptw_env``): the risk warning runs the estimator, the
-#: evaluation harness runs any controller (TS, LQG, RL), the command line sits on top of everything.
+#: evaluation harness runs any controller (TS, LQG, RL), the command line sits on top of everything, and an
+#: old path re-exports its new module. Nothing imports an old path.
 ARROWS = {
     "risk": {"estimation"},
     "evaluate": {"control", "rl"},
-    "cli": set(FAMILIES) - {"cli"},
+    "cli": set(FAMILIES) - {"cli", "compat"},
+    "compat": set(FAMILIES) - {"compat"},
 }
-CLI_MODULES = {"ptw_env.cli", *FAMILIES["cli"]}
+CLI_MODULES = {"ptw_env.cli", *FAMILIES["cli"], "assist.commands", "assist.diagnose_cli", "assist.estimate_cli",
+               "assist.risk_cli", "assist.rl_cli"}
 
 
 def module_name(path: Path, root: Path = ROOT) -> str:
@@ -87,7 +95,8 @@ def violations(module: str, source: str, is_package: bool = False) -> list[str]:
         ttop = target.split(".")[0]
         if top == "ptw_env" and ttop == "assist":
             bad.append(f"{module}:{line}: the simulator imports {target}")
-        if module not in CLI_MODULES and any(target == c or target.startswith(c + ".") for c in CLI_MODULES):
+        if module not in CLI_MODULES and fam not in ("cli", "compat") and \
+                any(target == c or target.startswith(c + ".") for c in CLI_MODULES):
             bad.append(f"{module}:{line}: library code imports the command line ({target})")
         tfam = family_of(target)
         if fam and tfam and tfam != fam and tfam not in ARROWS.get(fam, set()):
@@ -195,13 +204,15 @@ def test_the_code_base_keeps_the_import_rules():
 @pytest.mark.parametrize(
     "module, source, expected",
     [
-        ("ptw_env.env", "def f():\n    import assist.hosm\n", "the simulator imports"),
+        ("ptw_env.env", "def f():\n    import assist.unknown_input.hosm\n", "the simulator imports"),
         ("ptw_env.logs", "from assist.risk import monitor\n", "the simulator imports"),
-        ("assist.hosm", "from ptw_env.cli import number\n", "library code imports the command line"),
+        ("assist.unknown_input.hosm", "from ptw_env.cli import number\n", "library code imports the command line"),
         ("assist.risk.monitor", "from ..risk_cli import x\n", "library code imports the command line"),
-        ("assist.diagnose.replay", "from assist.adaptive_observer import AdaptiveObserver\n", "family diagnose"),
-        ("assist.ts_design", "from .hosm import design_uihosmo\n", "family control imports family unknown_input"),
-        ("assist.identification", "from ptw_env.kernels import _deriv\n", "private name"),
+        ("assist.diagnose.replay", "from assist.estimation.adaptive_observer import AdaptiveObserver\n", "family diagnose"),
+        ("assist.control.ts_design", "from ..unknown_input.hosm import design_uihosmo\n",
+         "family control imports family unknown_input"),
+        ("assist.risk.pipeline", "from ..adaptive_observer import AdaptiveObserver\n", "family risk imports family compat"),
+        ("assist.estimation.identification", "from ptw_env.kernels import _deriv\n", "private name"),
         ("assist.risk.evaluation", "from ptw_env._secret import x\n", "private name"),
     ],
 )
@@ -213,11 +224,40 @@ def test_the_checker_finds_each_kind_of_violation(module, source, expected):
 @pytest.mark.parametrize(
     "module, source",
     [
-        ("assist.risk.pipeline", "from ..adaptive_observer import AdaptiveObserver\n"),  # a stated arrow
+        ("assist.risk.pipeline", "from ..estimation.adaptive_observer import AdaptiveObserver\n"),  # a stated arrow
         ("assist.evaluate", "from .rl import load_policy\n"),
-        ("assist.cli", "from . import commands\nimport ptw_env.cli\n"),
-        ("assist.hosm", "from ptw_env.vehicle import REFERENCE_SCOOTER\nfrom .differentiator import _x\n"),
+        ("assist.cli.control", "from assist.cli import risk\nimport ptw_env.cli\nfrom ..control import lqg\n"),
+        ("assist.unknown_input.hosm", "from ptw_env.vehicle import REFERENCE_SCOOTER\nfrom .differentiator import _x\n"),
     ],
 )
 def test_the_checker_accepts_what_the_rules_allow(module, source):
     assert violations(module, source) == []
+
+
+@pytest.mark.parametrize("old", COMPAT)
+def test_an_old_path_still_works_and_says_where_the_module_went(old):
+    import importlib
+    import sys
+    import warnings
+
+    sys.modules.pop(old, None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        mod = importlib.import_module(old)
+    new_name = mod._new.__name__
+    assert any(issubclass(w.category, DeprecationWarning) and new_name in str(w.message) for w in caught)
+    new = importlib.import_module(new_name)
+    public = getattr(new, "__all__", [n for n in vars(new) if not n.startswith("_")])
+    for name in public:
+        assert getattr(mod, name) is getattr(new, name), (old, name)
+
+
+def test_the_tests_and_scripts_use_the_new_paths():
+    """An old path imported by our own code would hide a missing re-export (and monkeypatch the wrong module)."""
+    found = []
+    for folder in ("tests", "scripts"):
+        for f in sorted((ROOT / folder).glob("*.py")):
+            for line, target, _ in imports(f.read_text(encoding="utf-8"), f"{folder}.{f.stem}"):
+                if target in COMPAT:
+                    found.append(f"{folder}/{f.name}:{line}: imports the old path {target}")
+    assert found == [], "\n".join(found)

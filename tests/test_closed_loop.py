@@ -5,7 +5,7 @@ within 2x of the full-state LQR bound on the double lane change at 5 % noise —
 bounded estimation error: |phi_hat - phi| < 2 deg and |vy_hat - vy| < 0.2 m/s at every
 sample (the roll error bound is twice the 1 deg tracking target; 0.2 m/s is 10 % of
 the lateral velocity a 45 deg lean at 33 m/s would need). The full-state bound is
-:class:`assist.lqg.TrackingLQR` on the true state (with the TS controller's reference
+:class:`assist.control.lqg.TrackingLQR` on the true state (with the TS controller's reference
 feedforward), and on the double lane change at 50 km/h no output-feedback controller may
 beat it, or the TS design's own state feedback on the true state, by more than 10 %. (They
 bound their own feedback laws, not every law: at 100 km/h, noise-free, the TS loop beats
@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from assist.evaluate import EvaluationError, make_controller, run_episode
-from assist.lqg import MEASURED, LQGController, TrackingLQR, tracking_weights
+from assist.control.lqg import MEASURED, LQGController, TrackingLQR, tracking_weights
 from assist.cli import main
 from ptw_env.dynamics import compile_plant, linearise
 from ptw_env.env import PTWRollEnv
@@ -72,7 +72,7 @@ def test_reference_filter_leaves_no_torque_spike_on_the_c1_lane_change():
     # peaks no higher than 25 % above the full-state bound's on the same ride (both use the filtered
     # feedforward); with two backward differences of phi_ref instead it spiked to twice that.
     from assist.evaluate import TSAdapter
-    from assist.ts_controller import TSObserverController
+    from assist.control.ts_controller import TSObserverController
 
     def ts_with(bandwidth):
         def make(env):

@@ -1,4 +1,4 @@
-"""Levant's robust exact differentiator (assist.differentiator): gains, finite-time exactness,
+"""Levant's robust exact differentiator (assist.unknown_input.differentiator): gains, finite-time exactness,
 and the accuracy asymptotics of Levant (2003) / Livne & Levant (2014) with sampling and noise."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assist.differentiator import (
+from assist.unknown_input.differentiator import (
     DifferentiatorError,
     LevantDifferentiator,
     accuracy_scale,

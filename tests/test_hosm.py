@@ -1,4 +1,4 @@
-"""The unknown-input HOSM observer (assist.hosm): design invariants, exact reconstruction on
+"""The unknown-input HOSM observer (assist.unknown_input.hosm): design invariants, exact reconstruction on
 smooth simulated data, bounds on rides with truth, the scheduled variant and input checking."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
-from assist.hosm import (
+from assist.unknown_input.hosm import (
     PAPER_POLES,
     HOSMConfig,
     HOSMDesignError,
@@ -20,8 +20,8 @@ from assist.hosm import (
     measurements_from_log,
     run_observer,
 )
-from assist.observability import ptw_triplet
-from assist.structure import invariant_zeros
+from assist.unknown_input.observability import ptw_triplet
+from assist.unknown_input.structure import invariant_zeros
 from ptw_env.integrate import simulate
 from ptw_env.ride import ride_scenario
 from ptw_env.sensors import SensorConfig

@@ -1,4 +1,4 @@
-"""Cramér-Rao bounds of the tire stiffnesses (assist.identifiability) against independent references."""
+"""Cramér-Rao bounds of the tire stiffnesses (assist.estimation.identifiability) against independent references."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from assist.identifiability import IdentifiabilityError, output_noise_std, ride_information, stiffness_information
-from assist.lpv_model import STATE_SCALE, build_lpv_model
+from assist.estimation.identifiability import IdentifiabilityError, output_noise_std, ride_information, stiffness_information
+from assist.estimation.lpv_model import STATE_SCALE, build_lpv_model
 from ptw_env import simulate
 from ptw_env.dynamics import compile_plant
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-import assist.estimate_cli  # noqa: F401  (registers the subcommand)
-from assist.identification import (
+import assist.cli.estimate  # noqa: F401  (registers the subcommand)
+from assist.estimation.identification import (
     DirectLS,
     IdentificationError,
     InversionLS,
@@ -18,7 +18,7 @@ from assist.identification import (
     estimate,
     state_variable_filter,
 )
-from assist.lpv_model import build_lpv_model
+from assist.estimation.lpv_model import build_lpv_model
 from assist.cli import main
 from ptw_env.logs import RideLog
 from ptw_env.ride import ride_scenario

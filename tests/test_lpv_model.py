@@ -1,4 +1,4 @@
-"""The LPV form of the reference scooter (assist.lpv_model): regressor, virtual sensor, polytope, observability."""
+"""The LPV form of the reference scooter (assist.estimation.lpv_model): regressor, virtual sensor, polytope, observability."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from assist.lpv_model import (
+from assist.estimation.lpv_model import (
     LPVModelError,
     build_lpv_model,
     nonlinearity_vertices,

@@ -375,8 +375,8 @@ def test_environment_steps_the_built_vehicle():
 
 
 def test_observer_and_controller_models_accept_the_built_vehicle():
-    from assist.lpv_model import build_lpv_model
-    from assist.ts_model import build_ts_model
+    from assist.estimation.lpv_model import build_lpv_model
+    from assist.control.ts_model import build_ts_model
 
     m = build_lpv_model(SHARP, vmin=5.0, vmax=30.0)
     assert m.kappa == pytest.approx(1.0, abs=1e-12)  # a72 is exactly the formula here

@@ -1,5 +1,5 @@
-"""Structural tools (assist.structure) on textbook systems with known answers, and the
-scooter case analysis (assist.observability) against the paper and independent computations."""
+"""Structural tools (assist.unknown_input.structure) on textbook systems with known answers, and the
+scooter case analysis (assist.unknown_input.observability) against the paper and independent computations."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import scipy.linalg as sla
 from scipy import signal
 from scipy.optimize import linear_sum_assignment
 
-from assist.observability import (
+from assist.unknown_input.observability import (
     CASES,
     WORKING_CASE,
     ObservabilityError,
@@ -19,7 +19,7 @@ from assist.observability import (
     observability_report,
     ptw_triplet,
 )
-from assist.structure import (
+from assist.unknown_input.structure import (
     StructureError,
     analyse,
     decoupling_matrix,

@@ -9,7 +9,7 @@ import pytest
 import scipy.linalg as sla
 from scipy.integrate import solve_ivp
 
-from assist.ts_controller import (
+from assist.control.ts_controller import (
     MeasurementError,
     ReferenceFilter,
     TSObserverController,
@@ -19,8 +19,8 @@ from assist.ts_controller import (
     run_closed_loop,
     sampled_closed_loop,
 )
-from assist.ts_design import design
-from assist.ts_model import MEASURED_STATES
+from assist.control.ts_design import design
+from assist.control.ts_model import MEASURED_STATES
 from ptw_env.dynamics import compile_plant
 from ptw_env.vehicle import DELTA, PHI, VY
 

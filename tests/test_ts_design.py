@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from assist import ts_design as tdz
-from assist.ts_design import (
+from assist.control import ts_design as tdz
+from assist.control.ts_design import (
     DesignError,
     DesignOptionError,
     DesignOptions,
@@ -21,7 +21,7 @@ from assist.ts_design import (
     design_report,
     format_summary,
 )
-from assist.ts_model import H1_CORNER, H1_GAIN
+from assist.control.ts_model import H1_CORNER, H1_GAIN
 
 
 @pytest.fixture(scope="module")

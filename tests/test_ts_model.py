@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from assist.ts_model import (
+from assist.control.ts_model import (
     H1_CORNER,
     H1_GAIN,
     H2_CORNER,

@@ -11,7 +11,7 @@ The contract is ``shared/spec/diagnose.md``; the causes and their physics are
     report.plot("report.png")
 
 Command line: ``ptw-assist diagnose LOG.csv --json REPORT.json --plot REPORT.png``
-(:mod:`assist.diagnose_cli`). How the replay stays honest on an open-loop
+(:mod:`assist.cli.diagnose`). How the replay stays honest on an open-loop
 unstable vehicle: :mod:`assist.diagnose.replay`; how causes are fitted,
 ranked and judged: :mod:`assist.diagnose.hypotheses`,
 :mod:`assist.diagnose.selection`.

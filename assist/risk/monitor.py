@@ -1,7 +1,7 @@
 """Risk warning from the estimated road friction: utilisation, safe lean, safe curve speed, levels.
 
 :class:`RiskMonitor` is a plain object fed, once per sample, with a tire
-stiffness estimate (any estimator: :class:`assist.adaptive_observer.AdaptiveObserver`
+stiffness estimate (any estimator: :class:`assist.estimation.adaptive_observer.AdaptiveObserver`
 by default, see :mod:`assist.risk.pipeline`), the estimated axle forces, the
 speed, the measured lateral acceleration and the path ahead. It returns a
 :class:`RiskAssessment`. The aim is the one of Fouka, Nehaoua, Arioui [1]_

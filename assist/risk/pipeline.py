@@ -6,7 +6,7 @@ held until the next sample), ``reset()``, and the properties ``stiffness``
 and ``stiffness_std`` ([N/rad], order ``C_alpha_f, C_gamma_f, C_alpha_r,
 C_gamma_r``); if it also has ``x_hat`` (the 8 states of model.md) its axle
 forces ``x_hat[6:8]`` give the per-axle utilisation. The default is the LPV
-adaptive observer of :mod:`assist.adaptive_observer` (sensitivity law),
+adaptive observer of :mod:`assist.estimation.adaptive_observer` (sensitivity law),
 designed for the sensors' noise level (:func:`default_estimator`).
 
 Both online uses (:class:`assist.risk.wrapper.RiskWarningWrapper`) and the
@@ -63,7 +63,7 @@ FRICTION_WALK = 0.05
 
 def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01):
     """The LPV adaptive observer for the risk warning: Kalman vertex gains
-    (:func:`assist.adaptive_design.kalman_design`) and one friction scale for all four stiffnesses
+    (:func:`assist.estimation.adaptive_design.kalman_design`) and one friction scale for all four stiffnesses
     (``parametrisation="friction"``, [1]_ sec. II-C ``Theta = mu Theta_0``), sensitivity law with the
     random walk :data:`FRICTION_WALK`; designed for ``noise_pct`` % sensor noise (``None``: the
     reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s]; its plant's road bank
@@ -79,12 +79,12 @@ def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01):
     straight (on the wet-patch rides of :mod:`assist.risk.evaluation` it reads 0.9 -> ~0.5 within a
     few seconds of straight riding), where the certified Theorem-2 observer, whose high gains absorb
     the stiffness error, drifts and has to be gated by lateral acceleration
-    (:mod:`assist.adaptive_observer`, "Which gains, which parameters").
+    (:mod:`assist.estimation.adaptive_observer`, "Which gains, which parameters").
 
     .. [1] M. Fouka, L. Nehaoua, H. Arioui (``shared/papers/000_348caefc9b08ee38.txt``).
     """
-    from assist.adaptive_design import AdaptiveDesignOptions, default_kalman_design
-    from assist.adaptive_observer import AdaptiveObserver
+    from assist.estimation.adaptive_design import AdaptiveDesignOptions, default_kalman_design
+    from assist.estimation.adaptive_observer import AdaptiveObserver
 
     pct = 0.5 if noise_pct is None else max(float(noise_pct), 0.5)
     design = default_kalman_design(AdaptiveDesignOptions(noise_pct=pct, dt=round(float(dt), 9)))
@@ -173,7 +173,7 @@ class RiskPipeline:
     road_bank : "auto", float or None
         ``"auto"`` (default): the bank is estimated on line by :class:`BankEstimate` and given to
         the estimator before every sample, if the estimator has a settable ``road_bank`` (as
-        :class:`~assist.adaptive_observer.AdaptiveObserver` has; others are left as they are). A
+        :class:`~assist.estimation.adaptive_observer.AdaptiveObserver` has; others are left as they are). A
         number [rad]: that bank, fixed (the estimator must take it). ``None``: leave the estimator as
         it is (a level road for :func:`default_estimator`). Why on line by default: roads are built
         with a cross-fall of 0.02-0.04 rad, and a level-road estimator reads it as grip

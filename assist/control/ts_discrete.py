@@ -9,9 +9,9 @@ measurements and the reference interpolated linearly between samples
     z_k = Phi_i z_{k-1} + Gamma0_i v_{k-1} + Gamma1_i (v_k - v_{k-1})
 
 ``[Phi, Gamma0, Gamma1]`` are blocks of ``expm([[F, G, 0], [0, 0, I], [0, 0, 0]] dt)``.
-Used by the design (:mod:`assist.ts_design`, which checks the sampled loop's
+Used by the design (:mod:`assist.control.ts_design`, which checks the sampled loop's
 stability on a grid of frozen premises with :func:`sampled_closed_loop`) and by
-the runtime (:mod:`assist.ts_controller`); it sits below both, so neither
+the runtime (:mod:`assist.control.ts_controller`); it sits below both, so neither
 imports the other for it.
 """
 
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .ts_model import PHI, AugmentedModel
+from assist.control.ts_model import PHI, AugmentedModel
 
 #: number of runtime states z = [x_hat (8), e_phi, s2]
 NZ = 10

@@ -77,7 +77,7 @@ from ptw_env.vehicle import G
 #: Algorithms of ``ptw-assist train-rl --algo``.
 ALGOS = ("ppo", "sac")
 #: The shipped policy (trained by the command in ``policies/ppo_roll.json``).
-DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "ppo_roll.zip"
+DEFAULT_POLICY = Path(__file__).resolve().parents[1] / "policies" / "ppo_roll.zip"
 #: Version of the observation encoding stored in a policy file.
 ENCODER_FORMAT = 1
 EXTRA_HINT = 'pip install "ptw-assist[rl]"'

@@ -1,0 +1,225 @@
+"""``ptw-assist`` subcommands of the rider-assist side: design, evaluate, demo (cli.md).
+
+Registered into the one command line of :mod:`ptw_env.cli` when it builds its parser.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from ptw_env.cli import (
+    NOISE_PCT,
+    SEED,
+    SPEED_KMH,
+    SPEED_MS,
+    CLIError,
+    add_vehicle_option,
+    check_outputs,
+    check_speeds_in_vehicle,
+    chosen_vehicle,
+    command,
+    effect_arg,
+    write_figure,
+    write_json,
+)
+
+DEFAULT_DEMO = {"scenario": "double_lane_change", "noise": 5.0, "seed": 0}
+
+
+def _speed_range(a: argparse.Namespace) -> dict[str, float]:
+    out = {}
+    for name in ("vmin", "vmax"):
+        v = getattr(a, name, None)
+        if v is not None:
+            if not math.isfinite(v) or v <= 0:
+                raise CLIError(f"--{name}: expected a positive speed in m/s, got {v}")
+            out[name] = v
+    if "vmin" in out and "vmax" in out and out["vmin"] >= out["vmax"]:
+        raise CLIError(f"--vmin {out['vmin']} must be below --vmax {out['vmax']}")
+    return out
+
+
+@command(
+    "design",
+    "the TS observer and controller LMI design (Theorems 1-2), certificates checked in numpy",
+    "ptw-assist design --vmin 8 --vmax 33 --json design.json",
+)
+def _build_design(p: argparse.ArgumentParser):
+    add_vehicle_option(p)
+    p.add_argument("--vmin", type=SPEED_MS, default=None,
+                   help="lower end of the speed premise [m/s] (default: the vehicle's design range, 8 for the "
+                        "reference scooter)")
+    p.add_argument("--vmax", type=SPEED_MS, default=None,
+                   help="upper end of the speed premise [m/s] (default: the vehicle's design range, 33 for the "
+                        "reference scooter)")
+    p.add_argument("--solver", choices=("CLARABEL", "SCS"), default="CLARABEL")
+    p.add_argument("--no-cache", action="store_true", help="solve again even if an identical design is cached")
+    p.add_argument("--json", default=None, metavar="FILE")
+    p.add_argument("--overwrite", action="store_true")
+
+    def run(a: argparse.Namespace) -> int:
+        from assist.control.ts_design import design_report, format_summary
+
+        check_outputs(a, "json")
+        v = chosen_vehicle(a)
+        _check_range_in_vehicle(a, v)
+        rep = design_report(v, solver=a.solver, cache=not a.no_cache, **_speed_range(a))
+        rep["vehicle"] = v.identity()
+        print(f"vehicle: {v.name}")
+        print(format_summary(rep))
+        if not rep.get("feasible"):
+            print(f"  (speed range tried: {_speed_range(a) or 'the design range of ' + v.name}; narrow it with "
+                  f"--vmin/--vmax, or set [speed_range] design_vmin/design_vmax in the vehicle file)")
+        write_json(a.json, rep, a.overwrite)
+        return 0 if rep.get("feasible") else 1
+
+    return run
+
+
+def _check_range_in_vehicle(a: argparse.Namespace, v) -> None:
+    """``--vmin``/``--vmax`` inside the vehicle's valid speed range (one clear error otherwise)."""
+    for name in ("vmin", "vmax"):
+        x = getattr(a, name, None)
+        if x is not None and not (v.vmin <= x <= v.vmax):
+            raise CLIError(f"--{name} {x:g} m/s is outside the valid range [{v.vmin:g}, {v.vmax:g}] m/s of {v.name}")
+
+
+def _add_episode_args(p: argparse.ArgumentParser, controller: bool = True) -> None:
+    from ptw_env.scenarios import scenario_names
+
+    from assist.evaluate import CONTROLLERS
+
+    if controller:
+        p.add_argument("--controller", choices=CONTROLLERS, default="ts")
+        p.add_argument("--policy", default=None, metavar="POLICY.zip",
+                       help="rl: a policy file from 'ptw-assist train-rl' (default: the shipped policy)")
+    p.add_argument("--scenario", choices=scenario_names(), default=DEFAULT_DEMO["scenario"])
+    add_vehicle_option(p)
+    p.add_argument("--speed", type=SPEED_KMH, default=None, metavar="KMH", help="cruise speed [km/h] where the scenario has one")
+    p.add_argument("--noise", type=NOISE_PCT, default=DEFAULT_DEMO["noise"], metavar="PCT",
+                   help="sensor noise in percent of each channel's range (default 5, the paper's)")
+    p.add_argument("--seed", type=SEED, default=DEFAULT_DEMO["seed"], help="seed of the sensor noise (>= 0)")
+    p.add_argument("--effect", action="append", default=[], metavar="CAUSE:PARAM=VALUE", type=effect_arg,
+                   help="an effect of effects.md in the true plant (the controller is designed on the nominal model)")
+    p.add_argument("--vmin", type=SPEED_MS, default=None,
+                   help="TS design: lower end of the speed premise [m/s] (default: the vehicle's design range)")
+    p.add_argument("--vmax", type=SPEED_MS, default=None,
+                   help="TS design: upper end of the speed premise [m/s] (default: the vehicle's design range)")
+    p.add_argument("--plot", default=None, metavar="OUT.png")
+    p.add_argument("--json", default=None, metavar="FILE")
+    p.add_argument("--overwrite", action="store_true")
+
+
+def _episode(a: argparse.Namespace, controller: str):
+    from ptw_env.effects import Effects
+
+    from assist.evaluate import run_episode
+
+    v = chosen_vehicle(a)
+    _check_range_in_vehicle(a, v)
+    opts = _speed_range(a) if controller in ("ts", "ts_state") else {}
+    if getattr(a, "policy", None) is not None:
+        if controller != "rl":
+            raise CLIError(f"--policy applies to --controller rl, not {controller}")
+        opts["policy"] = a.policy
+    try:
+        return run_episode(controller, a.scenario, speed_kmh=a.speed, noise_pct=a.noise, seed=a.seed,
+                           effects=Effects.parse(a.effect), controller_options=opts, vehicle=v)
+    except ValueError as exc:  # a design the vehicle cannot certify, a speed outside its range, ...
+        raise CLIError(f"{v.name}, controller {controller}: {exc}") from None
+
+
+@command(
+    "evaluate",
+    "a closed-loop roll-tracking episode through env.step with a controller",
+    "ptw-assist evaluate --controller ts --scenario double_lane_change --speed 100 --noise 5 --seed 1 --plot ts.png",
+)
+def _build_evaluate(p: argparse.ArgumentParser):
+    _add_episode_args(p)
+
+    def run(a: argparse.Namespace) -> int:
+        from assist.evaluate import metrics_table, plot_episode
+
+        check_outputs(a, "plot", "json")
+        ep = _episode(a, a.controller)
+        m = ep.metrics()
+        m["vehicle"] = chosen_vehicle(a).identity()
+        print(f"vehicle: {chosen_vehicle(a).name}")
+        print(metrics_table([m]))
+        if m["diverged"] or m["fell"]:
+            print(f"the episode ended early: {m['end_reason']}")
+        if a.plot:
+            write_figure(a.plot, lambda f: plot_episode(ep, f))
+            print(f"figure written to {a.plot}")
+        write_json(a.json, m, a.overwrite)
+        return 0
+
+    return run
+
+
+@command(
+    "demo",
+    "the main job: TS observer-based roll tracking on the default scenario with 5 % sensor noise, "
+    "against the LQG and the full-state bounds (tracking LQR, TS gains on the true state)",
+    "ptw-assist demo --plot demo.png",
+)
+def _build_demo(p: argparse.ArgumentParser):
+    _add_episode_args(p, controller=False)
+    p.set_defaults(plot="demo.png")
+
+    def run(a: argparse.Namespace) -> int:
+        from assist.evaluate import metrics_table, plot_episode
+
+        check_outputs(a, "plot", "json")
+        eps = {c: _episode(a, c) for c in ("ts", "lqg", "lqr", "ts_state")}
+        ms = {c: e.metrics() for c, e in eps.items()}
+        print(f"closed-loop roll tracking, {chosen_vehicle(a).name}, {a.scenario}, noise {a.noise} % of range, "
+              f"seed {a.seed} "
+              f"(ts and lqg see only the noisy sensors; the full-state bounds lqr (tracking LQR) and ts_state "
+              f"(the TS gains, observer bypassed) get the true state)")
+        print(metrics_table(list(ms.values())))
+        write_figure(a.plot, lambda f: plot_episode(eps["ts"], f, compare=[eps["lqg"], eps["lqr"]]))
+        print(f"figure written to {Path(a.plot)}")
+        out = dict(ms["ts"])
+        out["baselines"] = {"lqg": ms["lqg"], "lqr": ms["lqr"], "ts_state": ms["ts_state"]}
+        out["vehicle"] = chosen_vehicle(a).identity()
+        write_json(a.json, out, a.overwrite)
+        return 0
+
+    return run
+
+
+@command(
+    "observability",
+    "strong observability / detectability of the HOSM cases (invariant zeros, relative degrees) per speed",
+    "ptw-assist observability --speeds 8,15,25,33 --json obs.json --plot obs.png",
+)
+def _build_observability(p: argparse.ArgumentParser):
+    from ptw_env.cli import speed_list
+
+    add_vehicle_option(p)
+    p.add_argument("--speeds", type=speed_list, default=None, metavar="V1,V2,...",
+                   help="speeds in m/s (default: 26 speeds across the vehicle's design range, 8 to 33 m/s for the "
+                        "reference scooter)")
+    p.add_argument("--plot", default=None, metavar="OUT.png")
+    p.add_argument("--json", default=None, metavar="FILE")
+    p.add_argument("--overwrite", action="store_true")
+
+    def run(a: argparse.Namespace) -> int:
+        from assist.unknown_input.observability import format_report, observability_report, plot_report
+
+        check_outputs(a, "plot", "json")
+        v = chosen_vehicle(a)
+        check_speeds_in_vehicle(a.speeds, v)
+        rep = observability_report(a.speeds, vehicle=v)
+        rep["vehicle"] = v.identity()
+        print(format_report(rep))
+        if a.plot:
+            write_figure(a.plot, lambda f: plot_report(rep, f))
+            print(f"figure written to {a.plot}")
+        write_json(a.json, rep, a.overwrite)
+        return 0
+
+    return run

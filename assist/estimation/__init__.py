@@ -1,0 +1,8 @@
+"""estimation: states and tire stiffness from the measured outputs.
+
+``lpv_model`` (the LPV form of the one model, Fouka et al.), ``adaptive_design`` (Theorem 2 and Kalman
+vertex gains), ``adaptive_observer`` (the LPV adaptive observer), ``identification`` (direct, inversion and
+joint-EKF baselines), ``identifiability`` (Cramér-Rao bounds).
+
+May import: ``ptw_env`` only.
+"""
