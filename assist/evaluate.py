@@ -42,7 +42,7 @@ from typing import Any, Callable, Protocol
 import gymnasium as gym
 import numpy as np
 
-from ptw_env.env import PTWRollEnv
+from ptw_env.env import PTWRollEnv, obs_index
 from ptw_env.vehicle import STATE_NAMES
 
 CONTROLLERS = ("ts", "ts_state", "lqr", "lqg", "rl")
@@ -79,12 +79,49 @@ def _prior_model(env: PTWRollEnv, controller: str, observer: bool = True):
     return prior
 
 
+_MEASURED_OBS = list(obs_index("yaw_rate", "roll_rate", "delta", "delta_rate"))
+_VX_OBS, _REF_OBS = obs_index("vx", "phi_ref")
+
+
 def _measurements(obs: np.ndarray) -> np.ndarray:
-    """[yaw_rate, roll_rate, delta, delta_rate] from the observation [delta, delta_rate, yaw_rate, roll_rate, ...]."""
-    return np.array([obs[2], obs[3], obs[0], obs[1]], dtype=float)
+    """[yaw_rate, roll_rate, delta, delta_rate] from the observation (:data:`ptw_env.env.OBS_NAMES`)."""
+    return np.asarray(obs, dtype=float)[_MEASURED_OBS]
 
 
-class TSAdapter:
+class SensorAdapter:
+    """A controller that sees the observation only: ``self.ctrl.update(y, vx, phi_ref)`` with the measured
+    ``y = [yaw_rate, roll_rate, delta, delta_rate]``, the GPS speed and the reference; its ``x_hat`` is the
+    controller's estimate. Subclasses set ``name`` and build ``self.ctrl``."""
+
+    name = "sensors"
+    ctrl: Any
+
+    def reset(self) -> None:
+        self.ctrl.reset()
+
+    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
+        return self.ctrl.update(_measurements(obs), float(obs[_VX_OBS]), float(obs[_REF_OBS]))
+
+    @property
+    def x_hat(self) -> np.ndarray | None:
+        return self.ctrl.x_hat
+
+
+class TrueStateAdapter(SensorAdapter):
+    """A bound, not a controller one can build: ``self.ctrl.update(x, vx, phi_ref)`` with the true state and
+    speed (``info``); no estimate."""
+
+    name = "true_state"
+
+    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
+        return self.ctrl.update(info["state"], info["vx"], info["phi_ref"])
+
+    @property
+    def x_hat(self) -> None:
+        return None
+
+
+class TSAdapter(SensorAdapter):
     """The TS observer-based controller on the environment's observation."""
 
     name = "ts"
@@ -96,18 +133,10 @@ class TSAdapter:
         self.design = design(_prior_model(env, self.name), vmin=vmin, vmax=vmax)
         self.ctrl = TSObserverController(self.design, tau_max=env.tau_max)  # fed the torque the plant gets
 
-    def reset(self) -> None:
-        self.ctrl.reset()
 
-    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
-        return self.ctrl.update(_measurements(obs), float(obs[5]), float(obs[6]))
+class LQGAdapter(SensorAdapter):
+    """The LQG (Kalman filter + tracking LQR) on the environment's observation."""
 
-    @property
-    def x_hat(self) -> np.ndarray:
-        return self.ctrl.x_hat
-
-
-class LQGAdapter:
     name = "lqg"
 
     def __init__(self, env: PTWRollEnv) -> None:
@@ -115,18 +144,8 @@ class LQGAdapter:
 
         self.ctrl = LQGController(_prior_model(env, self.name), env.sensor_config, env.dt, env.tau_max)
 
-    def reset(self) -> None:
-        self.ctrl.reset()
 
-    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
-        return self.ctrl.update(_measurements(obs), float(obs[5]), float(obs[6]))
-
-    @property
-    def x_hat(self) -> np.ndarray:
-        return self.ctrl.x_hat
-
-
-class FullStateLQR:
+class FullStateLQR(TrueStateAdapter):
     """:class:`assist.control.lqg.TrackingLQR` on the true state (``info["state"]``) and true speed: the bound."""
 
     name = "lqr"
@@ -136,18 +155,8 @@ class FullStateLQR:
 
         self.ctrl = TrackingLQR(_prior_model(env, self.name, observer=False), env.dt, env.tau_max)
 
-    def reset(self) -> None:
-        self.ctrl.reset()
 
-    def act(self, obs: np.ndarray, info: dict[str, Any]) -> float:
-        return self.ctrl.update(info["state"], info["vx"], info["phi_ref"])
-
-    @property
-    def x_hat(self) -> None:
-        return None
-
-
-class TSStateAdapter(FullStateLQR):
+class TSStateAdapter(TrueStateAdapter):
     """:class:`assist.control.ts_controller.TSStateFeedback` (TS gains, observer bypassed) on the true state and speed."""
 
     name = "ts_state"

@@ -22,7 +22,7 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from .outputs import atomic_path, atomic_write_text, check_writable
 
@@ -176,6 +176,21 @@ def check_speeds_in_vehicle(speeds: Sequence[float] | None, vehicle: Any, option
                        f"{vehicle.name}")
 
 
+def emit(args: argparse.Namespace, obj: dict[str, Any] | None,
+         figures: Mapping[str, Callable[[Path], Any]] | None = None, what: str = "JSON") -> None:
+    """The end of every command: each figure option that was given (``{"plot": draw, "locus": draw}``) drawn and
+    written atomically (:func:`write_figure`), then ``obj`` as the ``--json`` file (:func:`write_json`), each
+    with a line saying where (``what``: how that line names the JSON, e.g. "report")."""
+    for option, draw in (figures or {}).items():
+        path = getattr(args, option, None)
+        if path:
+            write_figure(path, draw)
+            print(f"figure written to {path}")
+    if obj is not None and getattr(args, "json", None):
+        write_json(args.json, obj, bool(getattr(args, "overwrite", False)))
+        print(f"{what} written to {args.json}")
+
+
 def write_figure(path: str | os.PathLike, draw: Callable[[Path], Any]) -> None:
     """Draw a figure into a temporary file beside ``path`` and move it there when complete."""
     with atomic_path(path) as tmp:
@@ -326,11 +341,8 @@ def _build_simulate(p: argparse.ArgumentParser):
               f"{'FELL' if s['fell'] else 'upright'}; roll RMSE vs reference {s['roll_rmse_deg']:.2f} deg, "
               f"max roll {s['roll_max_deg']:.1f} deg, torque RMS {s['torque_rms_nm']:.1f} N m; effects: {effects}")
         print(f"log written to {log_path} (+ {sidecar.name})")
-        if a.plot:
-            write_figure(a.plot, lambda f: plot_ride(res, f))
-            print(f"figure written to {a.plot}")
-        write_json(a.json, {**s, "log": str(log_path), "effects": effects.to_causes(), "seed": a.seed,
-                            "vehicle": v.identity()}, a.overwrite)
+        emit(a, {**s, "log": str(log_path), "effects": effects.to_causes(), "seed": a.seed, "vehicle": v.identity()},
+             {"plot": lambda f: plot_ride(res, f)})
         return 0
 
     return run
@@ -372,13 +384,7 @@ def _build_modes(p: argparse.ArgumentParser):
                 parts.append(f"{lab} {re:+.2f}{'' if im == 0 else f'±{im:.2f}j'}")
             print(f"vx = {s:5.1f} m/s: " + ", ".join(parts))
         print(f"{v.name}: weave stability speed {res.stability_speed():.2f} m/s")
-        if a.plot:
-            write_figure(a.plot, lambda f: plot_modes(res, f))
-            print(f"figure written to {a.plot}")
-        if a.locus:
-            write_figure(a.locus, lambda f: plot_modes(res, f, classic=True))
-            print(f"root locus written to {a.locus}")
-        write_json(a.json, js, a.overwrite)
+        emit(a, js, {"plot": lambda f: plot_modes(res, f), "locus": lambda f: plot_modes(res, f, classic=True)})
         return 0
 
     return run

@@ -23,6 +23,21 @@ from .vehicle_files import VehicleFileError, load_vehicle
 
 #: Fall threshold [rad]: the model is valid for |phi| <= 45 deg (model.md).
 FALL_ANGLE = math.radians(45.0)
+#: The observation's channels by index (the table of :class:`PTWRollEnv`); ``roll`` only with ``observe_roll``.
+OBS_NAMES: tuple[str, ...] = ("delta", "delta_rate", "yaw_rate", "roll_rate", "ay", "vx", "phi_ref", "roll")
+
+
+def obs_index(*names: str) -> tuple[int, ...]:
+    """Indices of the named observation channels (:data:`OBS_NAMES`), e.g. ``obs_index("yaw_rate", "vx")``
+    is ``(2, 5)``: code that reads the observation names what it takes instead of restating indices."""
+    try:
+        return tuple(OBS_NAMES.index(n) for n in names)
+    except ValueError:
+        bad = [n for n in names if n not in OBS_NAMES]
+        raise ValueError(f"unknown observation channel(s) {bad}; the channels are {OBS_NAMES}") from None
+
+
+_OBS_VX, _OBS_REF, _OBS_ROLL = obs_index("vx", "phi_ref", "roll")
 
 
 class EnvConfigError(ValueError):
@@ -331,11 +346,11 @@ class PTWRollEnv(gym.Env):
         x = self.state
         y = self._sensors.measure(x, float(self.profile.vx[self._k]), float(self.plant.ay(x)))
         obs = np.empty(len(self._obs_hi), dtype=np.float32)
-        obs[:5] = y[:5]  # delta, delta_rate, yaw_rate, roll_rate, ay
-        obs[5] = y[6]  # vx (GPS)
-        obs[6] = self.profile.phi_ref[self._k]
+        obs[:5] = y[:5]  # delta, delta_rate, yaw_rate, roll_rate, ay (OBS_NAMES[:5] == CHANNELS[:5])
+        obs[_OBS_VX] = y[6]  # vx (GPS)
+        obs[_OBS_REF] = self.profile.phi_ref[self._k]
         if self.observe_roll:
-            obs[7] = y[5]
+            obs[_OBS_ROLL] = y[5]
         np.minimum(obs, self._obs_hi, out=obs)
         np.maximum(obs, self._obs_lo, out=obs)
         self._last_measurement = y

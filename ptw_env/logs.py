@@ -69,7 +69,6 @@ import json
 import math
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -640,6 +639,37 @@ def read_log(path: str | os.PathLike, min_duration_s: float = 1.0) -> RideLog:
     columns = {name: np.ascontiguousarray(data[:, j]) for j, name in enumerate(names) if j not in text_cols}
     return RideLog(t=columns["t"], columns=columns, meta=meta, path=path,
                    ignored_columns=tuple(names[j] for j in sorted(text_cols)), lines=tuple(lines))
+
+
+def sidecar_noise_pct(meta: Mapping[str, Any] | None) -> float | None:
+    """The sidecar's ``noise_pct`` (percent of each channel's range, logs.md) when it is a finite number >= 0,
+    else None (absent: the caller's default applies; :func:`read_log` has already refused a bad value)."""
+    v = meta.get("noise_pct") if isinstance(meta, Mapping) else None
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0:
+        return float(v)
+    return None
+
+
+def speed_fixes(t: np.ndarray, vx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The instants [s] and values [m/s] of a sample-and-hold speed channel's fixes (logs.md: ``vx`` is the
+    GPS speed held between 10 Hz fixes): the first reading and every reading that differs from the one before,
+    dropouts (NaN) skipped. A channel refreshed every sample gives every sample. ValueError without a reading."""
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(vx, dtype=float)
+    ok = np.isfinite(v)
+    if not ok.any():
+        raise ValueError("column 'vx': no speed reading at all")
+    ti, vi = t[ok], v[ok]
+    fix = np.r_[True, vi[1:] != vi[:-1]]  # a held reading repeats; a new fix changes it
+    return ti[fix], vi[fix]
+
+
+def held_speed(t: np.ndarray, vx: np.ndarray) -> np.ndarray:
+    """Speed [m/s] at every sample ``t`` [s] from a sample-and-hold channel: linear interpolation between its
+    fixes (:func:`speed_fixes`), across dropouts; constant before the first and after the last fix. The one
+    reconstruction of the held GPS speed (estimation, risk and diagnosis use it)."""
+    tf, vf = speed_fixes(t, vx)
+    return np.interp(np.asarray(t, dtype=float), tf, vf)
 
 
 def check_against_vehicle(log: RideLog, vehicle: Any) -> None:

@@ -36,13 +36,17 @@ FAMILIES = {
     "risk": ("assist.risk",),
     "diagnose": ("assist.diagnose",),
     "evaluate": ("assist.evaluate",),
+    "lmi": ("assist.lmi",),
     "cli": ("assist.cli",),
     "compat": COMPAT,
 }
 #: Which family may import which (besides itself and ``ptw_env``): the risk warning runs the estimator, the
-#: evaluation harness runs any controller (TS, LQG, RL), the command line sits on top of everything, and an
+#: evaluation harness runs any controller (TS, LQG, RL), both designs share the LMI plumbing, the command line sits
+#: on top of everything, and an
 #: old path re-exports its new module. Nothing imports an old path.
 ARROWS = {
+    "control": {"lmi"},
+    "estimation": {"lmi"},
     "risk": {"estimation"},
     "evaluate": {"control", "rl"},
     "cli": set(FAMILIES) - {"cli", "compat"},

@@ -474,3 +474,41 @@ def test_steer_angle_beyond_the_vehicles_lock_names_line_and_lock(tmp_path):
     assert (e.value.line, e.value.column) == (42, "delta")
     assert "steering lock" in str(e.value) and "35.0 deg" in str(e.value) and "45.8 deg" in str(e.value)
     assert log.where(40).endswith("line 42 (sample 40, t = 0.400 s)")
+
+
+def test_the_one_held_speed_reconstruction_and_its_users():
+    """A 10 Hz held GPS ramp with dropouts: fixes at each change, linear between them; the adaptive observer's,
+    the diagnosis' (unsmoothed) and the risk warning's readers give the same numbers (one implementation)."""
+    from assist.diagnose.data import reconstruct_speed
+    from assist.estimation.adaptive_observer import gps_interpolate
+    from ptw_env.logs import held_speed, sidecar_noise_pct, speed_fixes
+
+    t = np.arange(0.0, 3.0, 0.01)
+    true = 10.0 + 0.5 * t
+    held = true[(np.arange(t.size) // 10) * 10]  # a fix every 0.1 s, held in between
+    held[[33, 34, 155]] = np.nan  # dropouts between fixes (a dropped fix would be seen one sample late)
+    tf, vf = speed_fixes(t, held)
+    assert np.allclose(np.diff(tf), 0.1) and np.allclose(vf, 10.0 + 0.5 * tf)
+    v = held_speed(t, held)
+    inside = t <= tf[-1]
+    assert np.allclose(v[inside], true[inside])  # exact on a ramp between the first and last fix
+    assert np.array_equal(gps_interpolate(t, held), v)
+    assert np.array_equal(reconstruct_speed(t, held, smooth_s=0.0), v)
+    with pytest.raises(ValueError, match="no speed reading"):
+        held_speed(t, np.full(t.size, np.nan))
+    assert sidecar_noise_pct({"noise_pct": 2}) == 2.0 and sidecar_noise_pct({"noise_pct": True}) is None
+    assert sidecar_noise_pct({}) is None and sidecar_noise_pct(None) is None
+
+
+def test_observation_channels_by_name_match_the_environment():
+    from ptw_env.env import OBS_NAMES, PTWRollEnv, obs_index
+
+    env = PTWRollEnv("double_lane_change", noise_pct=0.0, observe_roll=True)
+    obs, info = env.reset(seed=0)
+    obs, *_ , info = env.step(np.zeros(1, dtype=np.float32))
+    assert obs[obs_index("vx")[0]] == pytest.approx(info["vx"], abs=0.5)  # the held GPS speed
+    assert obs[obs_index("phi_ref")[0]] == pytest.approx(info["phi_ref"], abs=1e-6)
+    assert obs[obs_index("roll")[0]] == pytest.approx(info["state"][0], abs=1e-3)
+    assert len(OBS_NAMES) == env.observation_space.shape[0]
+    with pytest.raises(ValueError, match="unknown observation channel"):
+        obs_index("speed")

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import math
-from pathlib import Path
 
 from ptw_env.cli import (
     NOISE_PCT,
@@ -21,8 +20,7 @@ from ptw_env.cli import (
     chosen_vehicle,
     command,
     effect_arg,
-    write_figure,
-    write_json,
+    emit,
 )
 
 DEFAULT_DEMO = {"scenario": "double_lane_change", "noise": 5.0, "seed": 0}
@@ -72,7 +70,7 @@ def _build_design(p: argparse.ArgumentParser):
         if not rep.get("feasible"):
             print(f"  (speed range tried: {_speed_range(a) or 'the design range of ' + v.name}; narrow it with "
                   f"--vmin/--vmax, or set [speed_range] design_vmin/design_vmax in the vehicle file)")
-        write_json(a.json, rep, a.overwrite)
+        emit(a, rep)
         return 0 if rep.get("feasible") else 1
 
     return run
@@ -150,10 +148,7 @@ def _build_evaluate(p: argparse.ArgumentParser):
         print(metrics_table([m]))
         if m["diverged"] or m["fell"]:
             print(f"the episode ended early: {m['end_reason']}")
-        if a.plot:
-            write_figure(a.plot, lambda f: plot_episode(ep, f))
-            print(f"figure written to {a.plot}")
-        write_json(a.json, m, a.overwrite)
+        emit(a, m, {"plot": lambda f: plot_episode(ep, f)})
         return 0
 
     return run
@@ -180,12 +175,10 @@ def _build_demo(p: argparse.ArgumentParser):
               f"(ts and lqg see only the noisy sensors; the full-state bounds lqr (tracking LQR) and ts_state "
               f"(the TS gains, observer bypassed) get the true state)")
         print(metrics_table(list(ms.values())))
-        write_figure(a.plot, lambda f: plot_episode(eps["ts"], f, compare=[eps["lqg"], eps["lqr"]]))
-        print(f"figure written to {Path(a.plot)}")
         out = dict(ms["ts"])
         out["baselines"] = {"lqg": ms["lqg"], "lqr": ms["lqr"], "ts_state": ms["ts_state"]}
         out["vehicle"] = chosen_vehicle(a).identity()
-        write_json(a.json, out, a.overwrite)
+        emit(a, out, {"plot": lambda f: plot_episode(eps["ts"], f, compare=[eps["lqg"], eps["lqr"]])})
         return 0
 
     return run
@@ -216,10 +209,7 @@ def _build_observability(p: argparse.ArgumentParser):
         rep = observability_report(a.speeds, vehicle=v)
         rep["vehicle"] = v.identity()
         print(format_report(rep))
-        if a.plot:
-            write_figure(a.plot, lambda f: plot_report(rep, f))
-            print(f"figure written to {a.plot}")
-        write_json(a.json, rep, a.overwrite)
+        emit(a, rep, {"plot": lambda f: plot_report(rep, f)})
         return 0
 
     return run

@@ -17,9 +17,8 @@ from ptw_env.cli import (
     check_outputs,
     command,
     number,
+    emit,
     vehicle_for_log,
-    write_figure,
-    write_json,
 )
 
 
@@ -69,12 +68,7 @@ def _build_diagnose(p: argparse.ArgumentParser):
         rep = diagnose(ride, window_s=a.window, pairs=pairs, progress=False if a.no_progress else None, vehicle=v)
         print(rep.summary())
         print(f"diagnosed in {rep.seconds:.1f} s ({100 * rep.sim_seconds / rep.seconds:.0f} % in the simulator)")
-        if a.plot:
-            write_figure(a.plot, rep.plot)
-            print(f"figure written to {a.plot}")
-        if a.json:
-            write_json(a.json, rep.to_json(), a.overwrite)
-            print(f"report written to {a.json}")
+        emit(a, rep.to_json() if a.json else None, {"plot": rep.plot}, what="report")
         return 0
 
     return run

@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ptw_env.cli import CLIError, road_bank, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure, add_vehicle_option
+from ptw_env.cli import CLIError, road_bank, check_outputs, NOISE_PCT, command, number, reference_scooter_log, add_vehicle_option, emit
+from ptw_env.logs import sidecar_noise_pct
 
 METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
 
@@ -38,10 +39,7 @@ def _truth_scales(meta: dict) -> tuple[float, float] | None:
 def _noise_pct(a: argparse.Namespace, meta: dict) -> float | None:
     if a.noise is not None:
         return float(a.noise)
-    v = (meta or {}).get("noise_pct")
-    if isinstance(v, (int, float)) and math.isfinite(v) and v >= 0:
-        return float(v)
-    return None
+    return sidecar_noise_pct(meta)
 
 
 def plot_estimate(res, log, path: str | Path, nominal: np.ndarray, truth: np.ndarray | None = None) -> None:
@@ -202,10 +200,7 @@ def _build(p: argparse.ArgumentParser):
             if truth is not None:
                 line += f" {truth[j]:10.1f} {100 * (mean[j] / truth[j] - 1):7.2f}%"
             print(line)
-        if a.plot:
-            write_figure(a.plot, lambda f: plot_estimate(res, log, f, nominal, truth))
-            print(f"figure written to {a.plot}")
-        write_json(a.json, out, a.overwrite)
+        emit(a, out, {"plot": lambda f: plot_estimate(res, log, f, nominal, truth)})
         return 0
 
     return run

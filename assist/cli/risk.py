@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, write_json, command, number, reference_scooter_log, write_figure, add_vehicle_option
+from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, command, number, reference_scooter_log, add_vehicle_option, emit
 
 
 @command(
@@ -45,21 +45,19 @@ def _build(p: argparse.ArgumentParser):
 
         import numpy as np
 
-        from ptw_env.logs import read_log
+        from ptw_env.logs import read_log, sidecar_noise_pct
 
         from assist.risk.evaluation import truth_from_log
         from assist.risk.monitor import RiskConfig, RiskMonitor
-        from assist.risk.offline import assess_log, plot_risk
+        from assist.risk.offline import DEFAULT_NOISE_PCT, assess_log, plot_risk
         from assist.risk.pipeline import RiskPipeline, default_estimator
 
         check_outputs(a, "plot", "json")
         log = read_log(a.log)
         reference_scooter_log(log, "risk", a.vehicle)
         dt = float(log.dt)
-        pct = a.noise
-        if pct is None:
-            v = (log.meta or {}).get("noise_pct") if isinstance(log.meta, dict) else None
-            pct = float(v) if isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 else 5.0
+        pct = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)
+        pct = DEFAULT_NOISE_PCT if pct is None else pct
         cfg = RiskConfig() if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)
         try:
             est = default_estimator(pct, dt)
@@ -101,13 +99,10 @@ def _build(p: argparse.ArgumentParser):
             print(f"  t = {e['t']:7.2f} - {e['until']:7.2f} s  {e['reason']}")
         if len(w) > 10:
             print(f"  ... {len(w) - 10} more in --json")
-        if a.plot:
-            write_figure(a.plot, lambda f: plot_risk(
-                res, f, mu_true=None if truth is None else truth[0],
-                true_utilisation=None if truth is None else truth[1],
-                saturation_t=None if truth is None else truth[2], title=f"risk warning: {a.log}"))
-            print(f"figure written to {a.plot}")
-        write_json(a.json, js, a.overwrite)
+        emit(a, js, {"plot": lambda f: plot_risk(
+            res, f, mu_true=None if truth is None else truth[0],
+            true_utilisation=None if truth is None else truth[1],
+            saturation_t=None if truth is None else truth[2], title=f"risk warning: {a.log}")})
         return 0
 
     return run

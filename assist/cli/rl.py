@@ -12,7 +12,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from ptw_env.cli import SEED, CLIError, add_vehicle_option, check_outputs, chosen_vehicle, command, number, write_json
+from ptw_env.cli import SEED, CLIError, add_vehicle_option, check_outputs, chosen_vehicle, command, emit, number
 from ptw_env.vehicle import REFERENCE_SCOOTER
 
 #: Settings of the shipped policy (``assist/policies/ppo_roll.json``).
@@ -78,7 +78,7 @@ def _build_train_rl(p: argparse.ArgumentParser):
               f"{res.meta['eval_rides']['episodes']} evaluation rides: trained {res.final_reward:.0f}, untrained "
               f"{res.initial_reward:.0f}, random actions {res.random_reward:.0f} (1 per 10 ms step of perfect tracking)")
         print(f"policy written to {res.path} (+ {Path(a.sidecar).name})")
-        write_json(a.json, res.to_json(), a.overwrite)
+        emit(a, res.to_json())
         return 0
 
     return run

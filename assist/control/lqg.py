@@ -41,14 +41,14 @@ import numpy as np
 import scipy.linalg as sla
 
 from ptw_env.sensors import SensorConfig
-from ptw_env.vehicle import PHI, REFERENCE_SCOOTER, Vehicle
+from ptw_env.vehicle import DELTA, DELTA_DOT, PHI, PHI_DOT, R, REFERENCE_SCOOTER, Vehicle
 
 from assist.control.ts_controller import REFERENCE_BANDWIDTH, FeedforwardTable, ReferenceFilter
 from assist.control.ts_model import split_model, build_ts_model, upright_matrices
 
 #: measured states, in the order of the measurement vector y: yaw rate, roll rate, delta, delta rate
-MEASURED = (3, 4, 1, 5)
-_CHANNEL_OF = {3: "yaw_rate", 4: "roll_rate", 1: "delta", 5: "delta_rate"}
+MEASURED = (R, PHI_DOT, DELTA, DELTA_DOT)  # state indices of the measured states
+_CHANNEL_OF = {R: "yaw_rate", PHI_DOT: "roll_rate", DELTA: "delta", DELTA_DOT: "delta_rate"}
 
 
 #: Bryson's rule of :class:`TrackingLQR`: largest acceptable roll-tracking error [rad] (the issue's 1 deg target).
@@ -242,7 +242,7 @@ def kalman_grid(vehicle, sensors: SensorConfig, dt: float = 0.01, torque_std: fl
         C[i, j] = 1.0
     r = np.array([sensors.noise_std[_CHANNEL_OF[j]] ** 2 for j in MEASURED])
     if sensors.delta_quantum:
-        r[MEASURED.index(1)] += sensors.delta_quantum**2 / 12.0
+        r[MEASURED.index(DELTA)] += sensors.delta_quantum**2 / 12.0
     r = np.maximum(r, 1e-10)  # noise-free sensors: keep R invertible (a very confident filter)
     R = np.diag(r)
     if model_std is None:

@@ -66,6 +66,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
+from ptw_env.env import obs_index
+
 from assist.control.ts_discrete import (  # noqa: F401  (re-exported: the runtime's discretisation, assist.control.ts_discrete)
     NV,
     NZ,
@@ -75,14 +77,14 @@ from assist.control.ts_discrete import (  # noqa: F401  (re-exported: the runtim
     sampled_closed_loop,
     vertex_systems,
 )
-from assist.control.ts_model import PHI, AugmentedModel
+from assist.control.ts_model import PHI
 
 if TYPE_CHECKING:  # pragma: no cover
     from assist.control.ts_design import TSDesign
 
 #: Indices in the :class:`ptw_env.env.PTWRollEnv` observation of yaw_rate, roll_rate, delta,
 #: delta_rate, vx, phi_ref (see :meth:`TSObserverController.act`).
-ENV_OBS_INDEX = (2, 3, 0, 1, 5, 6)
+ENV_OBS_INDEX = obs_index("yaw_rate", "roll_rate", "delta", "delta_rate", "vx", "phi_ref")
 #: Bandwidth of the reference filter [rad/s] (:class:`ReferenceFilter`).
 REFERENCE_BANDWIDTH = 30.0
 
@@ -499,7 +501,7 @@ class TSObserverController:
         """:meth:`update` from an observation of :class:`ptw_env.env.PTWRollEnv`.
 
         Uses ``obs[ENV_OBS_INDEX] = [yaw_rate, roll_rate, delta, delta_rate, vx, phi_ref]``
-        (indices 2, 3, 0, 1, 5, 6 of the environment's observation table).
+        (by name in the environment's observation table, :data:`ptw_env.env.OBS_NAMES`).
         """
         o = np.asarray(obs, dtype=np.float64)
         if o.ndim != 1 or o.size < 7:

@@ -189,6 +189,7 @@ import numpy as np
 from ptw_env.vehicle import PHI, REFERENCE_SCOOTER, STATE_NAMES, VY, Vehicle
 
 from assist.control.ts_discrete import DiscreteTS, discretise, sampled_closed_loop
+from assist.lmi import max_eig, solve_quietly, symmetric
 from assist.control.ts_model import (
     AUGMENTED_NAMES,
     MEASUREMENT_NAMES,
@@ -524,23 +525,16 @@ def _solve(d: _Data, o: TheoremOptions, radius: float, margin: float, solver: st
            families: tuple[str, ...] = FAMILIES, vertices: tuple[int, ...] = (0, 1, 2, 3),
            objective: str = "eps", status: list[str] | None = None) -> _Raw | None:
     """Solve; None when the solver reports infeasibility or fails (its status appended to ``status`` if given)."""
-    import warnings
-
-    import cvxpy as cp
-
     t0 = time.perf_counter()
     prob, (P, Pq, G, eps) = _problem(d, o, radius, margin, families, vertices, objective)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            prob.solve(solver=getattr(cp, solver))
-        except cp.error.SolverError:
-            if status is not None:
-                status.append("solver_error")
-            return None
+    st = solve_quietly(prob, solver)
+    if st.startswith("solver_"):
+        if status is not None:
+            status.append(st.split(":", 1)[0])
+        return None
     total = time.perf_counter() - t0
     if status is not None:
-        status.append(str(prob.status))
+        status.append(st)
     stats = prob.solver_stats
     solve_s = float(stats.solve_time) if stats is not None and stats.solve_time is not None else total
     if prob.status not in ("optimal", "optimal_inaccurate") or P.value is None:
@@ -548,19 +542,14 @@ def _solve(d: _Data, o: TheoremOptions, radius: float, margin: float, solver: st
     nv = G[0].shape
     Gv = np.stack([g.value if g.value is not None else np.zeros(nv) for g in G])
     return _Raw(
-        P=_sym(P.value),
-        Pq=_sym(Pq.value) if Pq is not None else None,
+        P=symmetric(P.value),
+        Pq=symmetric(Pq.value) if Pq is not None else None,
         G=Gv,
         eps=np.asarray(eps.value, dtype=float) if eps is not None else np.full(4, np.nan),
         status=prob.status,
         build_s=max(total - solve_s, 0.0),
         solve_s=solve_s,
     )
-
-
-def _sym(a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a, dtype=float)
-    return 0.5 * (a + a.T)
 
 
 def _balance(d: _Data, o: TheoremOptions, radius: float, margin: float, solver: str,
@@ -764,7 +753,7 @@ def _gen_min_eig(S: np.ndarray, P: np.ndarray) -> float:
     """Smallest ``eta`` with ``-S - eta P`` singular: ``lambda_min(P^-1/2 (-S) P^-1/2)``."""
     import scipy.linalg as sla
 
-    return float(sla.eigh(-_sym(S), _sym(P), eigvals_only=True)[0])
+    return float(sla.eigh(-symmetric(S), symmetric(P), eigvals_only=True)[0])
 
 
 def _observer_result(raw: _Raw, d: _Data, sx: np.ndarray, sy: np.ndarray, balance_s: float) -> ObserverDesign:
@@ -857,7 +846,7 @@ def certify(ts: TSModel, aug: AugmentedModel, obs: ObserverDesign, ctl: Controll
         for i in range(4):
             for name, blk in _blocks(d, P, Pq, G[i], eps, i, o.decay, radius, FAMILIES + (GAIN,), np.block,
                                      o.iss_rate).items():
-                top = float(np.linalg.eigvalsh(_sym(blk))[-1])
+                top = max_eig(blk)
                 if name == GAIN:  # non-strict: relative violation
                     top /= max(1.0, float(np.linalg.norm(blk, 2)))
                 out.append(CertificateEntry(theorem, name, i, top))

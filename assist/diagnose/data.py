@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ptw_env.logs import RideLog
+from ptw_env.logs import RideLog, held_speed, speed_fixes
 
 from .measurement import CHANNELS
 
@@ -84,10 +84,8 @@ def reconstruct_speed(t: np.ndarray, vx: np.ndarray, smooth_s: float = VX_SMOOTH
     ok = np.isfinite(vx)
     if ok.sum() < 2:
         raise DiagnoseInputError("column 'vx': fewer than two speed readings (the replay needs the forward speed)")
-    ti, vi = t[ok], vx[ok]
-    fix = np.r_[True, np.diff(vi) != 0.0]  # a held reading repeats; a new fix changes it
-    tf, vf = ti[fix], vi[fix]
-    v = np.interp(t, tf, vf)
+    tf, vf = speed_fixes(t, vx)  # ptw_env.logs: the one reconstruction of the held speed
+    v = held_speed(t, vx)
     if len(vf) >= 5:
         # jitter of the fixes about a straight line through their neighbours (robust, m/s)
         d2 = vf[1:-1] - (vf[:-2] * (tf[2:] - tf[1:-1]) + vf[2:] * (tf[1:-1] - tf[:-2])) / (tf[2:] - tf[:-2])

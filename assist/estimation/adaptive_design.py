@@ -84,7 +84,6 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
@@ -93,6 +92,7 @@ import numpy as np
 
 from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
 
+from assist.lmi import max_eig, solve_quietly, symmetric
 from assist.estimation.lpv_model import (
     DELTA_MAX,
     OUTPUT_NAMES,
@@ -256,26 +256,14 @@ def _scaled(model: LPVModel, o: AdaptiveDesignOptions) -> _Scaled:
     return _Scaled(A, C, Ca, D, N, Bw, Js, sx, sy, sya, sw)
 
 
-def _sym(a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a, dtype=float)
-    return 0.5 * (a + a.T)
-
-
 def _solve(prob, solver: str, stage: str) -> None:
-    import cvxpy as cp
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            prob.solve(solver=getattr(cp, solver))
-        except cp.error.SolverError as exc:
-            raise AdaptiveDesignError(stage, f"solver {solver} failed ({exc})") from None
-        except BaseException as exc:  # pyo3 PanicException (Clarabel) derives from BaseException
-            if isinstance(exc, (KeyboardInterrupt, SystemExit)):
-                raise
-            raise AdaptiveDesignError(stage, f"solver {solver} crashed ({type(exc).__name__}: {exc})") from None
-    if prob.status not in ("optimal", "optimal_inaccurate"):
-        raise AdaptiveDesignError(stage, f"the LMIs are {prob.status}")
+    st = solve_quietly(prob, solver)
+    if st.startswith("solver_error"):
+        raise AdaptiveDesignError(stage, f"solver {solver} failed ({st.split(': ', 1)[1]})")
+    if st.startswith("solver_crash"):
+        raise AdaptiveDesignError(stage, f"solver {solver} crashed ({st.split(': ', 1)[1]})")
+    if st not in ("optimal", "optimal_inaccurate"):
+        raise AdaptiveDesignError(stage, f"the LMIs are {st}")
 
 
 # --------------------------------------------------------------------------- Lipschitz bound
@@ -324,7 +312,7 @@ def lipschitz_bound(model: LPVModel | None = None, options: AdaptiveDesignOption
     cons = [cp.bmat([[R, Jv.T], [Jv, I4]]) >> 0 for Jv in d.J]
     prob = cp.Problem(cp.Minimize(cp.trace(R)), cons)
     _solve(prob, o.solver, "lipschitz")
-    Rs = _sym(R.value)
+    Rs = symmetric(R.value)
     # make it exactly feasible: lift by the worst violation
     worst = _lipschitz_violation(Rs, d.J)
     if worst > 0:
@@ -541,20 +529,17 @@ def design_adaptive_observer(model: LPVModel | None = None, options: AdaptiveDes
     z_opt = float(stage1.value)
     stage2 = cp.Problem(cp.Minimize(s), cons + [cp.trace(Z) <= (1.0 + o.slack) * z_opt])
     _solve(stage2, o.solver, "equality (stage 2)")
-    Pv, Kv, Tv = _sym(P.value), np.stack([k.value for k in K]), T.value
-    Zv = _sym(Z.value)
+    Pv, Kv, Tv = symmetric(P.value), np.stack([k.value for k in K]), T.value
+    Zv = symmetric(Z.value)
     if Pv is None or not np.all(np.isfinite(Pv)):
         raise AdaptiveDesignError("equality (stage 2)", "the solver returned no Lyapunov matrix")
 
     # ---- certificate (numpy)
     entries = [CertificateEntry("P > 0", None, float(-np.linalg.eigvalsh(Pv)[0]))]
     for i in range(2):
-        entries.append(CertificateEntry("theorem 2 (34) + noise", i, float(np.linalg.eigvalsh(
-            _sym(_main_block(d, Pv, Kv[i], Rs, i, np.block)))[-1])))
-        entries.append(CertificateEntry("theorem 2 (34)", i, float(np.linalg.eigvalsh(
-            _sym(_paper_block(d, Pv, Kv[i], Rs, i)))[-1])))
-        entries.append(CertificateEntry("pole disk", i, float(np.linalg.eigvalsh(
-            _sym(_disk_block(d, Pv, Kv[i], i, o.disk, np.block)))[-1])))
+        entries.append(CertificateEntry("theorem 2 (34) + noise", i, max_eig(_main_block(d, Pv, Kv[i], Rs, i, np.block))))
+        entries.append(CertificateEntry("theorem 2 (34)", i, max_eig(_paper_block(d, Pv, Kv[i], Rs, i))))
+        entries.append(CertificateEntry("pole disk", i, max_eig(_disk_block(d, Pv, Kv[i], i, o.disk, np.block))))
     entries.append(CertificateEntry("lipschitz R - J^T Q J >= 0", None, _lipschitz_violation(Rs, d.J), strict=False))
     cert = Certificate(margin=o.margin, entries=tuple(entries))
     if not cert.passed:
@@ -582,7 +567,7 @@ def design_adaptive_observer(model: LPVModel | None = None, options: AdaptiveDes
     qs = []
     for v in np.linspace(model.vmin, model.vmax, 14):
         G = design.quasi_static_gain(v)
-        ev = np.linalg.eigvalsh(_sym(G))
+        ev = np.linalg.eigvalsh(symmetric(G))
         qs.append(ev[0] / max(abs(ev[-1]), 1e-300))
     object.__setattr__(design, "quasi_static_min_eig", float(min(qs)))
     for a in (L, Tp, Pp, poles):
@@ -645,14 +630,13 @@ def kalman_design(model: LPVModel | None = None, options: AdaptiveDesignOptions 
         cons.append(_disk_block(d, P, P @ Ls[i], i, o.disk, cp.bmat) << -eps * np.eye(16))
     prob = cp.Problem(cp.Minimize(cp.trace(P)), cons)
     _solve(prob, o.solver, "kalman (common Lyapunov matrix)")
-    Pv = _sym(P.value)
+    Pv = symmetric(P.value)
     entries = [CertificateEntry("P > 0", None, float(-np.linalg.eigvalsh(Pv)[0]))]
     for i in range(2):
         Acl = d.A[i] - Ls[i] @ d.C
         entries.append(CertificateEntry("linear polytope (common P)", i,
-                                        float(np.linalg.eigvalsh(_sym(Pv @ Acl + Acl.T @ Pv))[-1])))
-        entries.append(CertificateEntry("pole disk", i, float(np.linalg.eigvalsh(
-            _sym(_disk_block(d, Pv, Pv @ Ls[i], i, o.disk, np.block)))[-1])))
+                                        max_eig(Pv @ Acl + Acl.T @ Pv)))
+        entries.append(CertificateEntry("pole disk", i, max_eig(_disk_block(d, Pv, Pv @ Ls[i], i, o.disk, np.block))))
     for v in np.linspace(model.vmin, model.vmax, grid):
         w = model.weights(v)
         ev = np.linalg.eigvals(model.A(v) - (w[0] * L[0] + w[1] * L[1]) @ model.C)

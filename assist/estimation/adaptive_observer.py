@@ -121,11 +121,12 @@ from numba import njit
 from ptw_env.dynamics import compile_plant
 from ptw_env.integrate import substeps_for
 from ptw_env.kernels import deriv, fold_vx
+from ptw_env.logs import held_speed
 from ptw_env.vehicle import PHI_DOT, R, DELTA_DOT
 
 from assist.estimation.adaptive_design import AdaptiveObserverDesign, default_design
 from assist.estimation.identifiability import PARAMETRISATIONS
-from assist.estimation.lpv_model import OUTPUT_NAMES, THETA_NAMES, LPVModel
+from assist.estimation.lpv_model import OUTPUT_NAMES, THETA_NAMES, LPVModel, chi_entry
 
 # --------------------------------------------------------------------------- compiled kernels
 # Filter bank of the paper's law (one H(s) per signal; f[k, 0] = H u, f[k, 1] = s H u):
@@ -144,10 +145,7 @@ def _obs_deriv(x, M, c, g, vxd, inv_sigma, fmax, bank, th, H0, H1, Lb, C, y0, y1
     deriv(x, M, c, g, vxd, inv_sigma, fmax, bank, out)
     # D chi(x, vx) Theta
     for j in range(4):
-        acc = 0.0
-        for i in range(8):
-            acc += (H0[j, i] + vxd * H1[j, i]) * x[i]
-        out[6 + j // 2] += acc * th[j]
+        out[6 + j // 2] += chi_entry(x, vxd, H0, H1, j) * th[j]
     # L (y - C x), y interpolated linearly over the period (first-order hold)
     for r in range(NY):
         if wm[r]:
@@ -174,10 +172,7 @@ def _ups_deriv(U, Acl, x, vxd, H0, H1, c0, out):
                 acc += Acl[i, l] * U[l, j]
             out[i, j] = acc
     for j in range(4):
-        acc = 0.0
-        for i in range(8):
-            acc += (H0[j, i] + vxd * H1[j, i]) * x[i]
-        out[6 + j // 2, j] += acc * c0[j]
+        out[6 + j // 2, j] += chi_entry(x, vxd, H0, H1, j) * c0[j]
 
 
 @njit(cache=True, inline="always")
@@ -523,15 +518,10 @@ def gps_interpolate(t: np.ndarray, vx: np.ndarray) -> np.ndarray:
     instants where the held value changes (and across NaN); a channel refreshed every sample is
     returned unchanged (only NaN filled). For whole logs; :meth:`AdaptiveObserver.update` uses
     the speed as given."""
-    t = np.asarray(t, dtype=float)
-    v = np.asarray(vx, dtype=float)
-    ok = np.isfinite(v)
-    if not np.any(ok):
-        raise ObserverInputError("vx has no finite sample")
-    idx = np.flatnonzero(ok)
-    vv = v[idx]
-    keep = np.r_[True, vv[1:] != vv[:-1]]
-    return np.interp(t, t[idx[keep]], vv[keep])
+    try:
+        return held_speed(t, vx)  # ptw_env.logs: the one reconstruction of the held speed
+    except ValueError:
+        raise ObserverInputError("vx has no finite sample") from None
 
 
 class AdaptiveObserver:

@@ -115,7 +115,7 @@ from ptw_env.vehicle import FYF, FYR, R, VY
 
 from assist.estimation.adaptive_design import DEFAULT_PROCESS_STD
 from assist.estimation.adaptive_observer import DEFAULT_BAND, AdaptiveObserver, gps_interpolate
-from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, THETA_NAMES, LPVModel, build_lpv_model
+from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, THETA_NAMES, LPVModel, build_lpv_model, chi_entry
 
 #: Methods of :func:`estimate` (cli.md ``--method``; ``ekf`` is an alias of ``ukf``).
 METHODS = ("adaptive", "direct", "inversion", "ukf")
@@ -404,10 +404,7 @@ class InversionLS:
 def _f_aug(x, s, M, c, g, vx, inv_sigma, fmax, bank, H0, H1, c0, out):
     deriv(x, M, c, g, vx, inv_sigma, fmax, bank, out)
     for j in range(4):
-        acc = 0.0
-        for i in range(8):
-            acc += (H0[j, i] + vx * H1[j, i]) * x[i]
-        out[6 + j // 2] += acc * c0[j] * s[j]
+        out[6 + j // 2] += chi_entry(x, vx, H0, H1, j) * c0[j] * s[j]
 
 
 @njit(cache=True)

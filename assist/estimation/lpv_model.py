@@ -89,6 +89,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ptw_env.vehicle import (
     DELTA,
@@ -497,6 +498,17 @@ def nonlinearity_vertices(model: LPVModel, theta_lo: np.ndarray, theta_hi: np.nd
     return np.array(out)
 
 
+@njit(cache=True, inline="always")
+def chi_entry(x, vx, H0, H1, j):
+    """``chi_j(x, vx) = (H0[j] + vx H1[j]) . x`` (:class:`LPVModel`), the regressor of stiffness ``j`` in row
+    ``FYF + j // 2``: the one compiled form of the LPV stiffness term, used by the adaptive observer's and the
+    joint EKF's kernels (units: those of ``C_j chi_j / C_j0`` per N/rad, as :attr:`LPVModel.H0`)."""
+    acc = 0.0
+    for i in range(8):
+        acc += (H0[j, i] + vx * H1[j, i]) * x[i]
+    return acc
+
+
 __all__ = [
     "DEFAULT_SPEED_RANGE",
     "DELTA_MAX",
@@ -511,6 +523,7 @@ __all__ = [
     "VIRTUAL_NAME",
     "VIRTUAL_STATES",
     "build_lpv_model",
+    "chi_entry",
     "nonlinearity_vertices",
     "observability_table",
     "theta_band",

@@ -25,15 +25,20 @@ when the level changed again, or the end of the log).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ptw_env.logs import held_speed, sidecar_noise_pct
+
 from .monitor import LEVELS, PathAhead, RiskAssessment, RiskConfig, RiskMonitor
 from .pipeline import OUTPUTS, MonitorInputs, RiskPipeline, default_estimator
+
+#: Sensor noise [% of range] the estimator is designed for when neither the caller nor the sidecar gives one
+#: (the papers' level).
+DEFAULT_NOISE_PCT = 5.0
 
 
 class RiskLogError(ValueError):
@@ -138,10 +143,8 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
         raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: too short ({len(t)} samples)")
     dt = float(np.median(np.diff(t)))
     if pipeline is None:
-        pct = noise_pct
-        if pct is None:
-            v = (log.meta or {}).get("noise_pct") if isinstance(log.meta, dict) else None
-            pct = float(v) if isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 else 5.0
+        pct = noise_pct if noise_pct is not None else sidecar_noise_pct(log.meta)
+        pct = DEFAULT_NOISE_PCT if pct is None else pct
         pipeline = RiskPipeline(default_estimator(pct, dt))
     pipeline.reset()
     Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
@@ -160,7 +163,7 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
         raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: vx must be positive (m/s) where present; "
                            f"vx = {vx[k]:g} m/s at sample {k} (t = {t[k]:.3f} s, line {k + 2} of a file with one "
                            f"header line), {nonpos.size} such sample(s)")
-    vfill = np.interp(t, t[ok], vx[ok])
+    vfill = held_speed(t, vx)  # ptw_env.logs: the one reconstruction of the held speed
     kmap = None
     if use_kappa and "kappa" in c:
         kap = np.asarray(c["kappa"], dtype=float)

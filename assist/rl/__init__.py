@@ -69,7 +69,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ptw_env.env import PTWRollEnv
+from ptw_env.env import OBS_NAMES, PTWRollEnv
 from ptw_env.scenarios import make_scenario
 from ptw_env.sensors import CHANNEL_RANGES
 from ptw_env.vehicle import G
@@ -112,7 +112,7 @@ def require_sb3():
 
 # ----------------------------------------------------------------------------- observation
 #: Channel order of the environment's observation.
-OBS_CHANNELS = ("delta", "delta_rate", "yaw_rate", "roll_rate", "ay", "vx", "phi_ref")
+OBS_CHANNELS = OBS_NAMES[:7]  # the default observation (no roll channel)
 #: Channels that change sign when the ride is mirrored left/right (all but vx).
 _MIRROR = np.array([-1, -1, -1, -1, -1, 1, -1], dtype=np.float32)
 

@@ -128,17 +128,9 @@ def balance(A: np.ndarray, D: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np
     to ``[[A, D], [C, 0]]`` padded square (states only are scaled), then
     columns of ``D`` and rows of ``C`` normalised to unit 2-norm.
     """
-    n, q = D.shape
-    p = C.shape[0]
-    m = max(q, p)
-    big = np.zeros((n + m, n + m))
-    big[:n, :n] = A
-    big[:n, n : n + q] = D
-    big[n : n + p, :n] = C
-    if not np.any(big):
+    if not (np.any(A) or np.any(D) or np.any(C)):
         return A.copy(), D.copy(), C.copy()
-    _, (scale, _) = sla.matrix_balance(big, permute=False, separate=True)
-    s = scale[:n]
+    s = _balance_scaling(A, D, C)
     Ab = A * (1.0 / s)[:, None] * s[None, :]
     Db = D / s[:, None]
     Cb = C * s[None, :]
@@ -359,6 +351,8 @@ def weakly_unobservable_subspace(A, D, C, tol: float = DEFAULT_TOL) -> np.ndarra
 
 
 def _balance_scaling(A, D, C) -> np.ndarray:
+    """State scaling ``S`` of :func:`balance`: :func:`scipy.linalg.matrix_balance` of ``[[A, D], [C, 0]]`` padded
+    square, its first ``n`` factors (ones for an all-zero triplet)."""
     n, q = D.shape
     p = C.shape[0]
     m = max(q, p)
