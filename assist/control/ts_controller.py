@@ -55,6 +55,9 @@ References
 ----------
 .. [1] H. Dabladji, D. Ichalal, H. Arioui, S. Mammar, "Observer based
    controller for single track vehicles", 52nd IEEE CDC, 2013.
+
+Length (about 730 lines): the run-time controller, its reference filter, the feedforward table and
+the true-state bound share the one compiled update kernel.
 """
 
 from __future__ import annotations

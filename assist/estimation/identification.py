@@ -94,6 +94,9 @@ References
    based identifiers" (``shared/papers/000_348caefc9b08ee38.txt``).
 .. [2] P. Young, "Parameter estimation for continuous-time models - a
    survey", Automatica 17(1), 1981.
+
+Length (about 710 lines): three baselines (direct, inversion, joint EKF) behind one estimator
+interface, sharing the weighted least squares and the log handling.
 """
 
 from __future__ import annotations

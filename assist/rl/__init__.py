@@ -51,6 +51,10 @@ Examples
 >>> x = enc.reset(np.array([0.01, 0, 0, 0, 0, 15.0, 0], dtype=np.float32))
 >>> x.shape, round(float(x[0]), 6), float(x[-1])
 ((15,), 0.2, 0.0)
+
+Length (about 840 lines): the observation encoder, the episode distribution, training and the run-
+time policy are one contract (the encoder's settings are stored in the policy file and read back at
+run time); a split into policy and training modules is planned.
 """
 
 from __future__ import annotations
