@@ -16,7 +16,7 @@ from .effects import Effects, as_effects
 from .friction import FrictionPlants, FrictionSchedule
 from .integrate import Stepper
 from .rider import DEFAULT_TAU_MAX
-from .scenarios import Scenario, make_scenario
+from .scenarios import Scenario, ScenarioError, make_scenario
 from .sensors import CHANNELS, SensorConfig, SensorModel
 from .vehicle import REFERENCE_SCOOTER, Vehicle
 from .vehicle_files import VehicleFileError, load_vehicle
@@ -314,12 +314,10 @@ class PTWRollEnv(gym.Env):
         self._friction = None if friction is None else FrictionPlants(friction, self.vehicle, self.effects, self.dt)
         self._sensors = SensorModel(self.sensor_config, self.effects.sensor, dt=self.dt)
         self.profile = self.scenario.profile(self.dt, seed=scenario_seed)
-        v0 = float(self.profile.vx[0])
-        if not (self.vehicle.vmin <= v0 <= self.vehicle.vmax):
-            raise EnvConfigError(
-                f"scenario {self.scenario.name!r} starts at {v0:.2f} m/s, outside the model's valid range "
-                f"[{self.vehicle.vmin}, {self.vehicle.vmax}] m/s"
-            )
+        try:
+            self.profile.check_vehicle(self.vehicle)
+        except ScenarioError as exc:
+            raise EnvConfigError(str(exc)) from None
         self.max_steps = len(self.profile.t) - 1
 
         a = 1.0 if self.normalize_action else self.tau_max
@@ -384,6 +382,10 @@ class PTWRollEnv(gym.Env):
         if self.randomize_course:
             # a new course from the environment's one generator (STYLE: everything from np_random)
             self.profile = self.scenario.profile(self.dt, seed=int(self.np_random.integers(2**31 - 1)))
+            try:
+                self.profile.check_vehicle(self.vehicle)
+            except ScenarioError as exc:
+                raise EnvConfigError(f"randomize_course: {exc}") from None
             self.max_steps = len(self.profile.t) - 1
         self._k = 0
         self._sensors.reset(self.np_random)

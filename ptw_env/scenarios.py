@@ -49,10 +49,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .vehicle import G, REFERENCE_SCOOTER
-
-#: Valid forward-speed range of the reference vehicle [m/s].
-V_MIN, V_MAX = REFERENCE_SCOOTER.vmin, REFERENCE_SCOOTER.vmax
+from .vehicle import G, Vehicle
 #: Largest roll reference a scenario may ask for [rad] (the model is valid to 45 deg).
 PHI_REF_MAX = math.radians(40.0)
 #: Resolution of the internal path grid [m].
@@ -119,6 +116,19 @@ class Profile:
     def __len__(self) -> int:
         return len(self.t)
 
+    def check_vehicle(self, vehicle: Vehicle) -> None:
+        """Raise :class:`ScenarioError` if the speed ever leaves ``vehicle``'s valid range ``[vmin, vmax]`` [m/s]
+        (a scenario is defined without a vehicle; the vehicle that rides it decides which speeds are valid).
+        The message names the scenario, the first time and speed outside, and the range in km/h."""
+        bad = np.flatnonzero((self.vx < vehicle.vmin - 1e-9) | (self.vx > vehicle.vmax + 1e-9))
+        if bad.size:
+            k = bad[0]
+            raise ScenarioError(
+                f"scenario {self.scenario!r}: speed {self.vx[k]:.3g} m/s ({3.6 * self.vx[k]:.3g} km/h) at "
+                f"t = {self.t[k]:.2f} s leaves the valid range of {vehicle.name}, [{vehicle.vmin:g}, "
+                f"{vehicle.vmax:g}] m/s ([{3.6 * vehicle.vmin:g}, {3.6 * vehicle.vmax:g}] km/h); change the "
+                f"scenario's speed parameters")
+
     @property
     def duration_s(self) -> float:
         """``t[-1]`` [s]."""
@@ -132,14 +142,13 @@ def _cumtrapz(y: np.ndarray, x: np.ndarray | float) -> np.ndarray:
 
 
 def _assemble(name: str, dt: float, t: np.ndarray, vx: np.ndarray, s: np.ndarray, kappa: np.ndarray) -> Profile:
-    """Roll reference and planar path from speed and curvature; checks speed and roll bounds."""
-    bad = np.flatnonzero((vx < V_MIN - 1e-9) | (vx > V_MAX + 1e-9))
+    """Roll reference and planar path from speed and curvature; checks that the speed stays positive and the
+    roll bound (the vehicle's speed range is checked by whoever rides it: :meth:`Profile.check_vehicle`)."""
+    bad = np.flatnonzero(~(vx > 0))
     if bad.size:
         k = bad[0]
-        raise ScenarioError(
-            f"{name}: speed {vx[k]:.3g} m/s at t = {t[k]:.2f} s leaves the vehicle's valid range "
-            f"[{V_MIN:g}, {V_MAX:g}] m/s; change the scenario's speed parameters"
-        )
+        raise ScenarioError(f"{name}: speed {vx[k]:.3g} m/s at t = {t[k]:.2f} s; the model needs a forward speed > 0 "
+                            f"(change the scenario's speed parameters)")
     phi_ref = np.arctan(vx**2 * kappa / G)
     k = int(np.argmax(np.abs(phi_ref)))
     if abs(phi_ref[k]) > PHI_REF_MAX + 1e-9:
@@ -286,13 +295,12 @@ def require_positive(obj: Any, *fields: str) -> None:
 
 
 def _speed_kmh(obj: Any, *fields: str) -> None:
+    """A speed parameter [km/h] must be a positive number; which speeds a vehicle can ride is checked against
+    that vehicle (:meth:`Profile.check_vehicle`), not here."""
     for f in fields:
         v = _num(obj, f)
-        if not (V_MIN * 3.6 <= v <= V_MAX * 3.6):
-            raise ScenarioError(
-                f"{obj.name}: {f} = {v:g} km/h ({v / 3.6:.3g} m/s) is outside the vehicle's valid range "
-                f"[{V_MIN * 3.6:g}, {V_MAX * 3.6:g}] km/h ([{V_MIN:g}, {V_MAX:g}] m/s)"
-            )
+        if not v > 0:
+            raise ScenarioError(f"{obj.name}: {f} = {v:g} km/h; a speed must be > 0")
 
 
 def _lateral_g(obj: Any) -> None:
@@ -736,13 +744,16 @@ class Urban(Scenario):
 
     def _segments(self, rng: np.random.Generator, length: float) -> list[Segment]:
         vmin, vmax = _kmh(self.v_min_kmh), _kmh(self.v_max_kmh)
+        # cruise in the upper two thirds of the speed range, slow down for traffic in the lower third
+        # (50 km/h for the default 30-90 km/h; a fraction, so that a bicycle's 5-25 km/h works alike)
+        split = _kmh(self.v_min_kmh + (self.v_max_kmh - self.v_min_kmh) / 3.0)
         segs = [Segment(length=60.0, vcap=vmax)]
         total, heading = 60.0, 0.0
         while total < length:
             L = rng.uniform(60.0, 250.0)
-            cruise = rng.uniform(max(_kmh(50.0), vmin), vmax)
+            cruise = rng.uniform(split, vmax)
             if rng.random() < 0.3:  # slow down for traffic in the middle of the straight
-                slow = rng.uniform(vmin, max(vmin, _kmh(50.0)))
+                slow = rng.uniform(vmin, split)
                 segs += [Segment(length=L / 2, vcap=cruise), Segment(length=10.0, vcap=slow), Segment(length=L / 2, vcap=cruise)]
                 L += 10.0
             else:

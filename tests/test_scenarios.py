@@ -215,14 +215,13 @@ def test_unknown_name_lists_the_known_ones():
     [
         ("slalom", None, {"cone_spaceing_m": 20.0}, "cone_spaceing_m"),
         ("double_lane_change", -50.0, {}, "speed_kmh"),
-        ("double_lane_change", 200.0, {}, "speed_kmh"),
-        ("slalom", 5.0, {}, "speed_kmh"),
+        ("slalom", 0.0, {}, "speed_kmh"),
         ("urban", None, {"duration_s": 0.0}, "duration_s"),
         ("handling", None, {"duration_s": -3.0}, "duration_s"),
         ("constant_radius", None, {"radius_m": 0.0}, "radius_m"),
         ("constant_radius", None, {"radius_m": -100.0}, "radius_m"),
         ("constant_radius", None, {"radius_m": 50.0}, "radius_m"),  # 100 km/h on 50 m: 57 deg of roll
-        ("constant_radius", None, {"v_end_kmh": 150.0}, "v_end_kmh"),
+        ("constant_radius", None, {"v_end_kmh": 150.0}, "150 km/h needs 60.5 deg of roll"),
         ("constant_radius", 80.0, {}, "v_start_kmh"),  # no cruise speed: names its speed parameters
         ("constant_radius", None, {"duration_s": 10.0}, "duration_s"),
         ("urban", None, {"v_min_kmh": 95.0}, "v_min_kmh"),
@@ -236,6 +235,32 @@ def test_unknown_name_lists_the_known_ones():
 def test_bad_parameters_raise_named_errors(name, speed, overrides, match):
     with pytest.raises(ScenarioError, match=match):
         make_scenario(name, speed_kmh=speed, **overrides)
+
+
+@pytest.mark.parametrize("name, speed, overrides, rider", [
+    ("double_lane_change", 200.0, {}, "cossalter-sport-touring"),  # 55.6 m/s: its valid range is 3-60 m/s
+    ("double_lane_change", 8.0, {}, "robot-bicycle"),              # 2.2 m/s
+    ("urban", None, {"v_min_kmh": 5.0, "v_max_kmh": 30.0}, "robot-bicycle"),
+])
+def test_the_vehicle_that_rides_a_scenario_decides_its_speeds(name, speed, overrides, rider):
+    """A scenario has no vehicle: its speeds are checked against the one that rides it (Profile.check_vehicle),
+    so the robot bicycle rides at 2.2 m/s what the scooter (3-40 m/s) cannot, and no scooter bound hides in a
+    scenario; the environment refuses the scooter with the scenario, time, speed and range named."""
+    from ptw_env.env import EnvConfigError, PTWRollEnv
+    from ptw_env.vehicle import REFERENCE_SCOOTER
+    from ptw_env.vehicle_files import load_vehicle
+
+    sc = make_scenario(name, speed_kmh=speed, **overrides)
+    prof = sc.profile()
+    with pytest.raises(ScenarioError, match=r"leaves the valid range of reference.scooter, \[3, 40\] m/s"):
+        prof.check_vehicle(REFERENCE_SCOOTER)
+    with pytest.raises(EnvConfigError, match=rf"scenario '{name}': speed .* at t = .* valid range"):
+        PTWRollEnv(scenario=sc)
+    v = load_vehicle(rider)
+    prof.check_vehicle(v)
+    env = PTWRollEnv(scenario=sc, vehicle=v)
+    env.reset(seed=0)
+    assert env.step([0.0])[0].shape == env.observation_space.shape
 
 
 def test_infeasible_path_and_bad_dt():
