@@ -96,23 +96,6 @@ def write_json(path: str | None, obj: dict[str, Any], overwrite: bool) -> None:
     atomic_write_text(p, text)
 
 
-def reference_scooter_log(log: Any, command: str, vehicle: Any = None) -> None:
-    """Refuse a log that is not the reference scooter's (``--vehicle`` naming another vehicle, or the sidecar's
-    vehicle), or that steers beyond its lock (:func:`ptw_env.logs.check_against_vehicle`).
-
-    For the commands whose observers are designed on the reference scooter only
-    (``estimate``, ``risk``): running them on another vehicle's log would be a silent guess.
-    """
-    from .vehicle import REFERENCE_SCOOTER
-
-    v = vehicle_for_log(argparse.Namespace(vehicle=vehicle), log)
-    if v.identity()["model_sha256"] != REFERENCE_SCOOTER.identity()["model_sha256"]:
-        src = "--vehicle" if vehicle is not None else f"the sidecar of {log.path}"
-        raise CLIError(f"{src} names the vehicle {v.name!r}; '{command}' runs observers designed on the reference "
-                       f"scooter only, which would misread another vehicle's log ('ptw-assist diagnose' takes any "
-                       f"vehicle)")
-
-
 def load_vehicle_option(text: str) -> Any:
     """The vehicle of a ``--vehicle`` text: a preset name or the path of a TOML vehicle file
     (:func:`ptw_env.vehicle_files.load_vehicle`); a bad one is one :class:`CLIError` naming the option, file and key."""

@@ -21,7 +21,7 @@ from .logs import RideLog, write_log
 from .rider import LQRRider
 from .sensors import CHANNELS, SensorConfig
 from .vehicle import STATE_NAMES
-from .vehicle_files import PRESET_DIR
+from .vehicle_files import sidecar_vehicle
 
 
 @dataclass
@@ -116,7 +116,7 @@ def ride_scenario(
     if env.friction is not None:
         cols["mu_true"] = np.asarray(mus)
     meta = {
-        "vehicle": env.vehicle.name,
+        **sidecar_vehicle(env.vehicle),
         "sample_rate_hz": round(1.0 / env.dt, 9),
         "generator": "ptw-assist simulate (ptw_env.ride.ride_scenario)",
         "scenario": env.scenario.name,
@@ -131,9 +131,6 @@ def ride_scenario(
         "notes": "tau and vx held over each sample (zero-order hold); x_* columns are the true state at t; "
         "vx is the measured (GPS) speed, vx_true the true one.",
     }
-    vfile = env.vehicle.provenance.get("file")
-    if vfile and Path(vfile).resolve().parent != PRESET_DIR:  # a user's vehicle file: name it (logs.md)
-        meta["vehicle_file"] = str(Path(vfile).resolve())
     log = RideLog(t=cols["t"], columns=cols, meta=meta, path=None)
     env.close()
     return RideResult(log=log, states=X, phi_ref=np.asarray(refs), fell=fell, reason=reason, scenario=env.scenario.name)

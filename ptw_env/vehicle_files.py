@@ -348,6 +348,16 @@ def _same_vehicle(vname: Any, vehicle: Vehicle, path: Path) -> bool:
         return False
 
 
+def sidecar_vehicle(vehicle: Vehicle) -> dict[str, str]:
+    """The sidecar keys that name ``vehicle`` (logs.md): ``vehicle`` (its name) and, for a user's vehicle file
+    (not a preset), ``vehicle_file`` (its resolved path), so that :func:`vehicle_of_log` finds it again."""
+    out = {"vehicle": vehicle.name}
+    vfile = vehicle.provenance.get("file")
+    if vfile and Path(vfile).resolve().parent != PRESET_DIR:
+        out["vehicle_file"] = str(Path(vfile).resolve())
+    return out
+
+
 def vehicle_of_log(meta: Mapping[str, Any], log_path: str | Path | None = None) -> Vehicle | None:
     """The vehicle a ride log's sidecar names (logs.md ``vehicle``, optional ``vehicle_file``).
 
@@ -387,4 +397,4 @@ def vehicle_of_log(meta: Mapping[str, Any], log_path: str | Path | None = None) 
 
 
 __all__ = ["PRESETS", "PRESET_DIR", "SECTIONS", "UNITS", "VehicleFileError", "load_parameters", "load_vehicle", "vehicle_names",
-           "vehicle_of_log"]
+           "sidecar_vehicle", "vehicle_of_log"]

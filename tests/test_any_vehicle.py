@@ -140,13 +140,29 @@ def test_simulate_with_a_vehicle_file_names_it_in_the_sidecar_and_diagnose_follo
 
 
 @pytest.mark.parametrize("command", ["estimate", "risk"])
-def test_scooter_only_commands_refuse_another_vehicle(tmp_path, capsys, command):
+def test_estimate_and_risk_run_on_the_log_of_another_vehicle(tmp_path, capsys, command):
+    """The sidecar's vehicle (or --vehicle) designs the observer and sizes the monitor; the JSON names the
+    vehicle and the observer's speed range (within the vehicle's valid range); another vehicle than the
+    sidecar's is refused, both named."""
+    from ptw_env.vehicle_files import load_vehicle
+
     log = tmp_path / "ride.csv"
-    assert main(["simulate", "--vehicle", "sharp1971", "--log", str(log), "--noise", "2"]) == 0
+    assert main(["simulate", "--vehicle", "sharp1971", "--log", str(log), "--noise", "2", "--effect",
+                 "tire_stiffness:front_scale=0.8", "--effect", "tire_stiffness:rear_scale=0.8"]) == 0
     capsys.readouterr()
-    assert main([command, str(log), "--vehicle", "sharp1971"]) == 2
+    js = tmp_path / "out.json"
+    assert main([command, str(log), "--json", str(js)]) == 0
+    out = json.loads(js.read_text())
+    v = load_vehicle("sharp1971")
+    assert out["vehicle"]["name"] == "sharp1971" and out["vehicle"]["model_sha256"] == v.identity()["model_sha256"]
+    lo, hi = out["observer_speed_range"]
+    assert v.vmin <= lo < hi <= v.vmax
+    if command == "estimate":  # the injected 0.8 within 5 % (the mean over the final third)
+        assert all(abs(e) < 0.05 for e in out["relative_error"].values()), out["relative_error"]
+    capsys.readouterr()
+    assert main([command, str(log), "--vehicle", "cossalter-sport-touring"]) == 2
     err = _one_error(capsys, command)
-    assert "'sharp1971'" in err and "reference scooter only" in err
+    assert "'cossalter-sport-touring'" in err and "'sharp1971'" in err
 
 
 def test_train_rl_refuses_another_vehicle_before_any_work(tmp_path, capsys):

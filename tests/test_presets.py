@@ -9,6 +9,8 @@ cause of effects.md (bank, payload, tire stiffness, gyro bias) of known size wit
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from assist.control.ts_design import design
@@ -76,3 +78,76 @@ def test_diagnose_names_the_hidden_cause_and_nothing_on_a_clean_ride(name, cause
     # beats the nominal model on held-out data (a 0.01 rad/s yaw bias sits at the 2 % noise level, 0.01 rad/s:
     # its held-out gain is small, so no size is asserted for the gain, only its sign)
     assert rep.explained and rep.gain > 0.0, rep.summary()
+
+
+def _slalom(v, duration_s: float, n_cones: int):
+    """A slalom at mid design speed ``vm`` that asks about 0.3 g: cones ``4 vm`` apart (one every 4 s), path
+    curvature amplitude ``A (pi / L)^2 = 0.3 g / vm^2`` (a sine path through the cones)."""
+    from ptw_env.scenarios import make_scenario
+    from ptw_env.vehicle import G
+
+    lo, hi = v.control_range
+    vm = 0.5 * (lo + hi)
+    L = 4.0 * vm
+    A = 0.3 * G / vm**2 / (math.pi / L) ** 2
+    return make_scenario("slalom", speed_kmh=3.6 * vm, cone_spacing_m=round(L, 2), amplitude_m=round(A, 3),
+                         n_cones=n_cones, run_in_s=2.0, duration_s=duration_s)
+
+
+@pytest.mark.parametrize("name", [
+    "reference-scooter", "sharp1971", "cossalter-sport-touring",
+    pytest.param("robot-bicycle", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured: 13-33 % mean error after the drop on seeds 0-2 (the motorcycles: 1-3 %); and below 4 % "
+        "noise its Kalman poles (200 rad/s at 5 %, 223 at 4 %) leave the 100 Hz pole disk (0.8 pi/dt = 251 rad/s): "
+        "no design"))),
+])
+def test_estimate_recovers_a_friction_drop_on_each_preset(name):
+    """The adaptive observer (Kalman vertex gains, one scale per axle) designed for the vehicle
+    (:func:`assist.estimation.adaptive_design.design_for_vehicle`) follows a friction drop 1 -> 0.6 at 20 s
+    on a 0.3 g slalom at mid design speed, 5 % noise, the vehicle's own LQR rider: from 15 s after the drop
+    every stiffness within 3 % on average (the scooter's tolerance on its handling track, tests/test_adaptive.py)
+    and never more than 12 % off (8 % there; on this slalom the scooter itself reaches 11 % over seeds 0-2),
+    10 s after the drop within 10 % (as there). Truth: the simulator's stiffness history."""
+    import numpy as np
+
+    from assist.estimation.adaptive_design import AdaptiveDesignOptions, design_for_vehicle
+    from assist.estimation.adaptive_observer import AdaptiveObserver
+    from assist.estimation.identification import simulate_friction_drop
+
+    v = load_vehicle(name)
+    sc = _slalom(v, 60.0, 10)
+    log, truth = simulate_friction_drop(sc.name, switch_s=20.0, after=0.6, noise_pct=5.0, seed=0, duration_s=60.0,
+                                        speed_kmh=sc.speed_kmh, vehicle=v,
+                                        scenario_options={k: getattr(sc, k) for k in
+                                                          ("cone_spacing_m", "amplitude_m", "n_cones", "run_in_s")})
+    assert log.meta["vehicle"] == v.name
+    d = design_for_vehicle(v, AdaptiveDesignOptions(noise_pct=5.0), "kalman", log.columns["vx"])
+    assert d.certificate.passed and d.model.vehicle is v
+    run = AdaptiveObserver(d, parametrisation="axle").run_log(log)
+    err = np.abs(run.stiffness / truth - 1.0)
+    assert np.all(err[3500:].mean(axis=0) < 0.03), err[3500:].mean(axis=0)
+    assert np.all(err[3500:].max(axis=0) < 0.12), err[3500:].max(axis=0)
+    assert np.all(err[3000] < 0.10), err[3000]
+
+
+@pytest.mark.parametrize("name", vehicle_names())
+def test_risk_reads_the_friction_of_each_preset(name):
+    """The risk warning's friction estimate (its default pipeline for the vehicle: Kalman observer with one
+    friction scale, the vehicle's axle loads and nominal stiffnesses) on a lane change at mid design speed on a
+    road of friction 0.6 (5 % noise, saturating tires, seed 3 as tests/test_risk.py): the median over the
+    informed samples within 0.05 of the truth, the scooter's tolerance there, and a caution is raised."""
+    import numpy as np
+
+    from assist.risk.offline import assess_log
+    from ptw_env.friction import FrictionSchedule
+    from ptw_env.scenarios import make_scenario
+
+    v = load_vehicle(name)
+    sc = make_scenario("double_lane_change", speed_kmh=_speed_kmh(v), run_in_s=6.0, duration_s=20.0)
+    ride = ride_scenario(sc, vehicle=v, effects="tire_saturation:mu_peak=0.9", noise_pct=5.0, seed=3,
+                         friction=FrictionSchedule.constant(0.6))
+    assert not ride.fell
+    run = assess_log(ride.log)  # the sidecar names the vehicle
+    mu, inf = run.series("mu_hat"), run.series("friction_informed").astype(bool)
+    assert inf.any() and abs(np.median(mu[inf]) - 0.6) < 0.05, np.median(mu[inf])
+    assert "caution" in {a.level for a in run.assessments}

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ptw_env.cli import CLIError, road_bank, check_outputs, NOISE_PCT, command, number, reference_scooter_log, add_vehicle_option, emit
+from ptw_env.cli import CLIError, road_bank, check_outputs, NOISE_PCT, command, number, vehicle_for_log, add_vehicle_option, emit
 from ptw_env.logs import sidecar_noise_pct
 
 METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
@@ -42,8 +42,11 @@ def _noise_pct(a: argparse.Namespace, meta: dict) -> float | None:
     return sidecar_noise_pct(meta)
 
 
-def plot_estimate(res, log, path: str | Path, nominal: np.ndarray, truth: np.ndarray | None = None) -> None:
-    """Figure like the paper's Figs. 3-4: stiffness ratios over time (with truth) and estimated vs measured outputs."""
+def plot_estimate(res, log, path: str | Path, nominal: np.ndarray, truth: np.ndarray | None = None,
+                  mass: float | None = None) -> None:
+    """Figure like the paper's Figs. 3-4: stiffness ratios over time (with truth) and estimated vs measured outputs.
+
+    ``mass`` [kg] is the vehicle's (estimated ``ay = (Fyf + Fyr) / M``); default the reference scooter's."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -52,6 +55,8 @@ def plot_estimate(res, log, path: str | Path, nominal: np.ndarray, truth: np.nda
     from ptw_env.vehicle import REFERENCE_SCOOTER
 
     from assist.estimation.lpv_model import THETA_NAMES
+
+    mass = REFERENCE_SCOOTER.mass if mass is None else float(mass)
 
     fig, axs = plt.subplots(2, 2, figsize=(11, 6.5), constrained_layout=True)
     ax = axs[0, 0]
@@ -66,7 +71,7 @@ def plot_estimate(res, log, path: str | Path, nominal: np.ndarray, truth: np.nda
     for ax, (col, idx, lab) in zip((axs[0, 1], axs[1, 0], axs[1, 1]), panels):
         ax.plot(log.t, c[col], color="0.6", lw=0.6, label="measured")
         if res.x_hat is not None:
-            est = res.x_hat[:, idx] if idx is not None else (res.x_hat[:, 6] + res.x_hat[:, 7]) / REFERENCE_SCOOTER.mass
+            est = res.x_hat[:, idx] if idx is not None else (res.x_hat[:, 6] + res.x_hat[:, 7]) / mass
             ax.plot(res.t, est, color="C0", lw=1.0, ls="--", label="estimate")
         if col == "ay" and res.x_hat is not None:
             ax2 = ax.twinx()
@@ -111,7 +116,7 @@ def resolve_design(a: argparse.Namespace) -> str:
 )
 def _build(p: argparse.ArgumentParser):
     p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md); its roll column is never used")
-    add_vehicle_option(p, from_log=True)  # only the reference scooter is accepted (its observers)
+    add_vehicle_option(p, from_log=True)
     p.add_argument("--method", choices=METHOD_CHOICES, default="adaptive",
                    help="adaptive (LPV adaptive observer, default), direct (eq. 12), inversion (eq. 13), "
                         "ukf (joint extended Kalman filter; ekf is an alias)")
@@ -140,27 +145,30 @@ def _build(p: argparse.ArgumentParser):
         from ptw_env.logs import read_log
         from ptw_env.sensors import SensorConfig
 
-        from assist.estimation.adaptive_design import AdaptiveDesignOptions, default_design, kalman_design
+        from assist.estimation.adaptive_design import AdaptiveDesignOptions, design_for_vehicle
         from assist.estimation.adaptive_observer import AdaptiveObserver
         from assist.estimation.identification import estimate
-        from assist.estimation.lpv_model import THETA_NAMES, build_lpv_model
+        from assist.estimation.lpv_model import THETA_NAMES, LPVModelError, build_lpv_model
 
         check_outputs(a, "plot", "json")
         if a.tau_a is not None and not (math.isfinite(a.tau_a) and a.tau_a > 0):
             raise CLIError(f"--tau-a: expected a positive time in seconds, got {a.tau_a}")
         log = read_log(a.log)
-        reference_scooter_log(log, "estimate", a.vehicle)
+        vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         why = resolve_design(a)
         dt = float(log.dt)
         pct = _noise_pct(a, log.meta)
         opts: dict[str, Any] = {"dt": round(dt, 9)}
         if pct is not None:
             opts["noise_pct"] = max(pct, 0.5)
-        try:
+        try:  # over the vehicle's design range, else over the log's speeds
             o = AdaptiveDesignOptions(**opts)
-            design = default_design(o) if a.gains == "theorem2" else kalman_design(options=o)
+            design = design_for_vehicle(vehicle, o, a.gains, np.asarray(log.columns["vx"], dtype=float))
+        except LPVModelError as exc:
+            raise CLIError(f"{a.log}: no LPV observer model for the vehicle {vehicle.name!r} ({exc})") from None
         except ValueError as exc:
             raise CLIError(f"{a.log}: the adaptive observer cannot be designed for this log ({exc})") from None
+        model = design.model
         if a.tau_a is not None and a.law != "paper":
             raise CLIError("--tau-a applies to --law paper only")
         if a.law == "paper" and (a.gains, a.parametrisation) != ("theorem2", "stiffness"):
@@ -173,15 +181,17 @@ def _build(p: argparse.ArgumentParser):
         sensors = SensorConfig.from_percent(pct) if pct is not None else SensorConfig()
         method = "ukf" if a.method == "ekf" else a.method
         try:
-            res = estimate(log, method, sensors=sensors, observer=obs)
+            res = estimate(log, method, sensors=sensors, observer=obs, model=model)
         except ValueError as exc:
             raise CLIError(f"{a.log}: {exc}") from None
         out = res.to_json()
         out["log"] = str(a.log)
+        out["vehicle"] = vehicle.identity()
+        out["observer_speed_range"] = [model.vmin, model.vmax]
         if method == "adaptive":
             out.update(law=a.law, gains=a.gains, parametrisation=a.parametrisation, road_bank_rad=a.road_bank,
                        design_why=why)
-        nominal = build_lpv_model().theta0
+        nominal = model.theta0
         scales = _truth_scales(log.meta)
         truth = None
         mean = res.final_third_mean()
@@ -191,7 +201,8 @@ def _build(p: argparse.ArgumentParser):
             out["relative_error"] = {n: float(m / t - 1.0) for n, m, t in zip(THETA_NAMES, mean, truth)}
         print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; method {method}"
               f"{f' ({a.law} law, {a.gains} gains, {a.parametrisation})' if method == 'adaptive' else ''}; "
-              f"stiffness = mean over the final third")
+              f"stiffness = mean over the final third; vehicle {vehicle.name}, observer scheduled on "
+              f"[{model.vmin:g}, {model.vmax:g}] m/s")
         if method == "adaptive":
             print(f"design: {why}")
         print(f"{'parameter':<11} {'estimate':>10} {'C/C0':>7}" + (f" {'truth':>10} {'error':>8}" if truth is not None else ""))
@@ -200,7 +211,7 @@ def _build(p: argparse.ArgumentParser):
             if truth is not None:
                 line += f" {truth[j]:10.1f} {100 * (mean[j] / truth[j] - 1):7.2f}%"
             print(line)
-        emit(a, out, {"plot": lambda f: plot_estimate(res, log, f, nominal, truth)})
+        emit(a, out, {"plot": lambda f: plot_estimate(res, log, f, nominal, truth, vehicle.mass)})
         return 0
 
     return run

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, command, number, reference_scooter_log, add_vehicle_option, emit
+from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, command, number, vehicle_for_log, add_vehicle_option, emit
 
 
 @command(
@@ -25,7 +25,7 @@ from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, c
 )
 def _build(p: argparse.ArgumentParser):
     p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md); an extra 'kappa' column [1/m] is the map ahead")
-    add_vehicle_option(p, from_log=True)  # only the reference scooter is accepted (its observers)
+    add_vehicle_option(p, from_log=True)
     p.add_argument("--noise", type=NOISE_PCT, default=None, metavar="PCT",
                    help="sensor noise in percent of range the observer is designed for "
                         "(default: the sidecar's noise_pct, else 5)")
@@ -54,22 +54,24 @@ def _build(p: argparse.ArgumentParser):
 
         check_outputs(a, "plot", "json")
         log = read_log(a.log)
-        reference_scooter_log(log, "risk", a.vehicle)
+        vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         dt = float(log.dt)
         pct = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)
         pct = DEFAULT_NOISE_PCT if pct is None else pct
         cfg = RiskConfig() if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)
         try:
-            est = default_estimator(pct, dt)
+            est = default_estimator(pct, dt, vehicle, np.asarray(log.columns["vx"], dtype=float))
         except ValueError as exc:
             raise CLIError(f"{a.log}: the adaptive observer cannot be designed for this log ({exc})") from None
-        pipe = RiskPipeline(est, RiskMonitor(cfg), road_bank=a.road_bank)
+        pipe = RiskPipeline(est, RiskMonitor(cfg, vehicle=vehicle), road_bank=a.road_bank)
         if pipe.bank_estimate is not None:
             pipe.bank_estimate.record = True  # the estimates, for the report
         res = assess_log(log, pipe, use_kappa=not a.no_map)
         banks = [] if pipe.bank_estimate is None else pipe.bank_estimate.history
         js = res.to_json()
         js["log"] = str(a.log)
+        js["vehicle"] = vehicle.identity()
+        js["observer_speed_range"] = [est.design.model.vmin, est.design.model.vmax]
         js["noise_pct_assumed"] = pct
         js["road_bank_rad"] = a.road_bank
         if banks:
@@ -77,8 +79,9 @@ def _build(p: argparse.ArgumentParser):
             js["road_bank_estimate_rad"] = {"median": float(np.median(b)), "p5": float(np.percentile(b, 5)),
                                             "p95": float(np.percentile(b, 95)), "final": float(b[-1])}
         last = res.assessments[-1]
-        truth = truth_from_log(log)
-        print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; road ahead: {res.path_source}")
+        truth = truth_from_log(log, vehicle)
+        print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; vehicle {vehicle.name}; road ahead: "
+              f"{res.path_source}")
         if banks:
             e = js["road_bank_estimate_rad"]
             print(f"road bank estimated on line: median {e['median']:.4f} rad (5-95 %: {e['p5']:.4f} to "

@@ -85,12 +85,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
 from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
+from ptw_env.vehicle import Vehicle
 
 from assist.lmi import max_eig, solve_quietly, symmetric
 from assist.estimation.lpv_model import (
@@ -139,8 +139,9 @@ class AdaptiveDesignOptions:
 
     Attributes
     ----------
-    vmin, vmax : float
-        Scheduling range [m/s] (default 8-34 m/s).
+    vmin, vmax : float or None
+        Scheduling range [m/s]; None (default): the model's, i.e. the vehicle's
+        :attr:`ptw_env.vehicle.Vehicle.control_range` (8-33 m/s for the reference scooter).
     lipschitz_band : tuple of 2 floats
         Stiffness band ``[lo, hi] x C_0`` over which the Lipschitz bound (hence
         the certificate) holds (default 0.9-1.1: wider bands drive the equality
@@ -164,8 +165,8 @@ class AdaptiveDesignOptions:
         ``"CLARABEL"`` (default) or ``"SCS"``.
     """
 
-    vmin: float = 8.0
-    vmax: float = 34.0
+    vmin: float | None = None
+    vmax: float | None = None
     lipschitz_band: tuple[float, float] = (0.9, 1.1)
     phi_max: float = PHI_MAX
     delta_max: float = DELTA_MAX
@@ -184,7 +185,9 @@ class AdaptiveDesignOptions:
                 raise AdaptiveDesignOptionError(f"{name} must be a finite number, got {v!r}")
             return float(v)
 
-        if not 0 < num("vmin") < num("vmax"):
+        lo = None if self.vmin is None else num("vmin")
+        hi = None if self.vmax is None else num("vmax")
+        if (lo is not None and lo <= 0) or (hi is not None and hi <= 0) or (None not in (lo, hi) and not lo < hi):
             raise AdaptiveDesignOptionError(f"need 0 < vmin < vmax [m/s], got vmin={self.vmin}, vmax={self.vmax}")
         band = tuple(float(b) for b in self.lipschitz_band)
         if len(band) != 2 or not (0 < band[0] < 1 < band[1]):
@@ -300,12 +303,26 @@ class LipschitzBound:
     gamma: float
 
 
+def model_for(options: AdaptiveDesignOptions, model: LPVModel | None = None) -> LPVModel:
+    """The LPV model a design is made on: ``model`` (its speed range must match the options' bounds that are
+    set), else the reference scooter's on the options' range (bounds left at None: the vehicle's
+    :attr:`~ptw_env.vehicle.Vehicle.control_range`)."""
+    if model is None:
+        return build_lpv_model(vmin=options.vmin, vmax=options.vmax)
+    for name, mine in (("vmin", model.vmin), ("vmax", model.vmax)):
+        want = getattr(options, name)
+        if want is not None and float(want) != float(mine):
+            raise AdaptiveDesignOptionError(
+                f"model speed range [{model.vmin}, {model.vmax}] m/s differs from the options' {name} = {want} m/s")
+    return model
+
+
 def lipschitz_bound(model: LPVModel | None = None, options: AdaptiveDesignOptions | None = None) -> LipschitzBound:
     """Compute ``R`` (module docstring, SDP ``min tr R``) on the box of ``options``."""
     import cvxpy as cp
 
     o = AdaptiveDesignOptions() if options is None else options
-    model = build_lpv_model(vmin=o.vmin, vmax=o.vmax) if model is None else model
+    model = model_for(o, model)
     d = _scaled(model, o)
     R = cp.Variable((8, 8), symmetric=True)
     I4 = np.eye(4)
@@ -500,11 +517,7 @@ def design_adaptive_observer(model: LPVModel | None = None, options: AdaptiveDes
             raise AdaptiveDesignOptionError(f"unknown design option(s) {bad}; known: {sorted(known)}")
         options = AdaptiveDesignOptions(**kwargs)
     o = AdaptiveDesignOptions() if options is None else options
-    if model is None:
-        model = build_lpv_model(vmin=o.vmin, vmax=o.vmax)
-    elif (model.vmin, model.vmax) != (o.vmin, o.vmax):
-        raise AdaptiveDesignOptionError(
-            f"model speed range [{model.vmin}, {model.vmax}] differs from the options' [{o.vmin}, {o.vmax}] m/s")
+    model = model_for(o, model)
     t0 = time.perf_counter()
     lip = lipschitz_bound(model, o)
     d = _scaled(model, o)
@@ -604,8 +617,7 @@ def kalman_design(model: LPVModel | None = None, options: AdaptiveDesignOptions 
     import scipy.linalg as sla
 
     o = AdaptiveDesignOptions() if options is None else options
-    if model is None:
-        model = build_lpv_model(vmin=o.vmin, vmax=o.vmax)
+    model = model_for(o, model)
     t0 = time.perf_counter()
     Bw = np.diag(np.asarray(o.process_std))
     V = np.diag(o.noise_std() ** 2 * o.dt)
@@ -655,24 +667,74 @@ def kalman_design(model: LPVModel | None = None, options: AdaptiveDesignOptions 
         quasi_static_min_eig=nan, solve_s=time.perf_counter() - t0, status=prob.status, kind="kalman")
 
 
-@lru_cache(maxsize=4)
-def _cached(options: AdaptiveDesignOptions) -> AdaptiveObserverDesign:
-    return design_adaptive_observer(options=options)
+_DESIGNS: dict[tuple, AdaptiveObserverDesign] = {}
 
 
-def default_design(options: AdaptiveDesignOptions | None = None) -> AdaptiveObserverDesign:
-    """The design for ``options`` (default options), solved once per process and reused."""
-    return _cached(AdaptiveDesignOptions() if options is None else options)
+def _memo(kind: str, options: AdaptiveDesignOptions | None, model: LPVModel | None, make) -> AdaptiveObserverDesign:
+    """One design per (kind, options, vehicle model, speed range) and process; at most 8 kept."""
+    o = AdaptiveDesignOptions() if options is None else options
+    m = model_for(o, model)
+    key = (kind, o, m.vehicle.identity()["model_sha256"], m.vmin, m.vmax)
+    if key not in _DESIGNS:
+        if len(_DESIGNS) >= 8:
+            _DESIGNS.pop(next(iter(_DESIGNS)))
+        _DESIGNS[key] = make(model=m, options=o)
+    return _DESIGNS[key]
 
 
-@lru_cache(maxsize=4)
-def _cached_kalman(options: AdaptiveDesignOptions) -> AdaptiveObserverDesign:
-    return kalman_design(options=options)
+def default_design(options: AdaptiveDesignOptions | None = None, model: LPVModel | None = None) -> AdaptiveObserverDesign:
+    """:func:`design_adaptive_observer` for ``options`` on ``model`` (defaults: default options, the reference
+    scooter's model), solved once per process and reused."""
+    return _memo("theorem2", options, model, design_adaptive_observer)
 
 
-def default_kalman_design(options: AdaptiveDesignOptions | None = None) -> AdaptiveObserverDesign:
-    """:func:`kalman_design` for ``options`` (default options), computed once per process and reused."""
-    return _cached_kalman(AdaptiveDesignOptions() if options is None else options)
+def default_kalman_design(options: AdaptiveDesignOptions | None = None,
+                          model: LPVModel | None = None) -> AdaptiveObserverDesign:
+    """:func:`kalman_design` for ``options`` on ``model`` (defaults as :func:`default_design`), computed once per
+    process and reused."""
+    return _memo("kalman", options, model, kalman_design)
+
+
+def design_for_vehicle(vehicle: Vehicle, options: AdaptiveDesignOptions | None = None, kind: str = "kalman",
+                       speeds: np.ndarray | None = None) -> AdaptiveObserverDesign:
+    """The observer design for ``vehicle``: over its :attr:`~ptw_env.vehicle.Vehicle.control_range`, else, when
+    that has no common Lyapunov matrix (one P for both vertices of a wide range, e.g. sharp1971's Kalman gains
+    over 6-30 m/s) and ``speeds`` [m/s] are given (a log's measured speeds), over their span
+    ``[min, max]`` (within the vehicle's valid range): the certificate only has to cover the speeds ridden.
+
+    ``kind``: ``"kalman"`` (:func:`default_kalman_design`) or ``"theorem2"`` (:func:`default_design`). The
+    options' ``vmin``/``vmax`` must be None (the range is chosen here).
+
+    Raises
+    ------
+    AdaptiveDesignError
+        Infeasible over both ranges; the message names both.
+    LPVModelError
+        The vehicle's rows do not have the structure of model.md.
+    """
+    o = AdaptiveDesignOptions() if options is None else options
+    if o.vmin is not None or o.vmax is not None:
+        raise AdaptiveDesignOptionError("design_for_vehicle chooses the speed range: leave vmin, vmax at None")
+    make = {"kalman": default_kalman_design, "theorem2": default_design}.get(kind)
+    if make is None:
+        raise AdaptiveDesignOptionError(f"kind must be 'kalman' or 'theorem2', got {kind!r}")
+    try:
+        return make(o, build_lpv_model(vehicle))
+    except AdaptiveDesignError as exc:
+        first = exc
+    sp = None if speeds is None else np.asarray(speeds, dtype=float)
+    sp = None if sp is None or not np.any(np.isfinite(sp)) else sp[np.isfinite(sp)]
+    if sp is None:
+        raise first
+    lo = max(float(vehicle.vmin), math.floor(2.0 * float(sp.min())) / 2.0)
+    hi = min(float(vehicle.vmax), math.ceil(2.0 * float(sp.max())) / 2.0)
+    if hi - lo < 0.5:  # a constant speed: a half-metre-per-second band around it
+        lo, hi = max(float(vehicle.vmin), lo - 0.25), min(float(vehicle.vmax), hi + 0.25)
+    try:
+        return make(o, build_lpv_model(vehicle, lo, hi))
+    except AdaptiveDesignError as exc:
+        raise AdaptiveDesignError(exc.stage, f"over {vehicle.name}'s design range {vehicle.control_range} m/s "
+                                  f"({first.cause}) and over the log's speeds [{lo:g}, {hi:g}] m/s ({exc.cause})") from None
 
 
 __all__ = [
@@ -686,7 +748,9 @@ __all__ = [
     "LipschitzBound",
     "default_design",
     "default_kalman_design",
+    "design_for_vehicle",
     "design_adaptive_observer",
     "kalman_design",
     "lipschitz_bound",
+    "model_for",
 ]

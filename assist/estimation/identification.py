@@ -114,9 +114,9 @@ from ptw_env.dynamics import compile_plant
 from ptw_env.integrate import substeps_for
 from ptw_env.kernels import deriv, fold_vx
 from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
-from ptw_env.vehicle import FYF, FYR, R, VY
+from ptw_env.vehicle import FYF, FYR, R, VY, Vehicle
 
-from assist.estimation.adaptive_design import DEFAULT_PROCESS_STD
+from assist.estimation.adaptive_design import DEFAULT_PROCESS_STD, default_design
 from assist.estimation.adaptive_observer import DEFAULT_BAND, AdaptiveObserver, gps_interpolate
 from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, THETA_NAMES, LPVModel, build_lpv_model, chi_entry
 
@@ -595,19 +595,36 @@ class JointEKF:
 
 
 # --------------------------------------------------------------------------- one entry point
+def _same_model(a: LPVModel, b: LPVModel) -> bool:
+    return (a.vmin, a.vmax) == (b.vmin, b.vmax) and \
+        a.vehicle.identity()["model_sha256"] == b.vehicle.identity()["model_sha256"]
+
+
 def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer: AdaptiveObserver | None = None,
-             x_hat: np.ndarray | None = None, ls_options: LSOptions | None = None) -> EstimationResult:
+             x_hat: np.ndarray | None = None, ls_options: LSOptions | None = None,
+             model: LPVModel | None = None) -> EstimationResult:
     """Run ``method`` (:data:`METHODS`, or ``"ekf"``) on a :class:`ptw_env.logs.RideLog`.
 
-    ``direct`` and ``inversion`` take their unmeasured regressor states from
-    ``x_hat`` (default: the adaptive observer's estimate of the same log).
-    The log's ``roll`` column is never used.
+    ``model`` is the vehicle's LPV model (:func:`assist.estimation.lpv_model.build_lpv_model`; default the
+    observer's, else the reference scooter's); ``observer`` must be designed on it. ``direct`` and
+    ``inversion`` take their unmeasured regressor states from ``x_hat`` (default: the adaptive observer's
+    estimate of the same log). The log's ``roll`` column is never used.
     """
     meth = "ukf" if method == "ekf" else method
     if meth not in METHODS:
         raise IdentificationError(f"unknown method {method!r}; known: {', '.join(METHODS)} (ekf = ukf)")
+    if model is None:
+        model = observer.design.model if observer is not None else build_lpv_model()
+    elif observer is not None and not _same_model(observer.design.model, model):
+        raise IdentificationError(f"observer= is designed on {observer.design.model.vehicle.name!r} at "
+                                  f"[{observer.design.model.vmin}, {observer.design.model.vmax}] m/s, model= is "
+                                  f"{model.vehicle.name!r} at [{model.vmin}, {model.vmax}] m/s")
+
+    def default_observer() -> AdaptiveObserver:
+        return AdaptiveObserver(default_design(model=model)) if observer is None else observer
+
     if meth == "adaptive":
-        obs = AdaptiveObserver() if observer is None else observer
+        obs = default_observer()
         run = obs.run_log(log)
         if run.samples < len(run.t):
             raise IdentificationError(f"the adaptive observer diverged at t = {run.t[run.samples - 1]:.2f} s")
@@ -615,10 +632,10 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
                 "stiffness_std_final": [float(v) for v in obs.stiffness_std]}
         return EstimationResult("adaptive", run.t, run.stiffness, run.x_hat, info)
     if meth == "ukf":
-        return JointEKF(sensors=sensors).fit(log).result()
+        return JointEKF(sensors=sensors, model=model).fit(log).result()
     if x_hat is None:
-        x_hat = (AdaptiveObserver() if observer is None else observer).run_log(log).x_hat
-    est = DirectLS(ls_options) if meth == "direct" else InversionLS(ls_options)
+        x_hat = default_observer().run_log(log).x_hat
+    est = DirectLS(ls_options, model=model) if meth == "direct" else InversionLS(ls_options, model=model)
     res = est.fit(log, x_hat=x_hat).result()
     return EstimationResult(res.method, res.t, res.stiffness, x_hat, res.info)
 
@@ -626,9 +643,13 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
 # --------------------------------------------------------------------------- a time-varying effect
 def simulate_friction_drop(scenario: str = "urban", switch_s: float = 20.0, before: float = 1.0, after: float = 0.6,
                            noise_pct: float | None = 5.0, seed: int = 0, speed_kmh: float | None = None,
-                           duration_s: float | None = None, rider_noise_nm: float = 3.0):
+                           duration_s: float | None = None, rider_noise_nm: float | None = None,
+                           vehicle: Vehicle | None = None, scenario_options: dict[str, Any] | None = None):
     """Ride ``scenario`` with a road-friction drop: both stiffness scales go from ``before`` to
     ``after`` at ``t = switch_s`` (effects.md ``tire_stiffness``: friction scales all four stiffnesses).
+
+    ``vehicle`` (default the reference scooter) is ridden by its own LQR rider; ``rider_noise_nm``
+    [N m] defaults to :data:`ptw_env.ride.RIDER_NOISE_NM` times the vehicle's ``torque_ratio``.
 
     :class:`ptw_env.env.PTWRollEnv` holds one plant per episode, so the loop is
     run here with the same parts the environment uses (the scenario's profile,
@@ -643,30 +664,37 @@ def simulate_friction_drop(scenario: str = "urban", switch_s: float = 20.0, befo
     """
     from ptw_env.integrate import Stepper
     from ptw_env.logs import RideLog
+    from ptw_env.ride import RIDER_NOISE_NM
     from ptw_env.rider import LQRRider
     from ptw_env.scenarios import make_scenario
     from ptw_env.sensors import CHANNELS, SensorModel
-    from ptw_env.vehicle import STATE_NAMES
+    from ptw_env.vehicle import REFERENCE_SCOOTER, STATE_NAMES
+    from ptw_env.vehicle_files import sidecar_vehicle
 
+    v = REFERENCE_SCOOTER if vehicle is None else vehicle
+    if rider_noise_nm is None:
+        rider_noise_nm = RIDER_NOISE_NM * v.torque_ratio
     for name, val in (("before", before), ("after", after)):
         if not (0.05 <= val <= 5.0):
             raise IdentificationError(f"{name} must be a stiffness scale in [0.05, 5], got {val!r}")
     over = {} if duration_s is None else {"duration_s": float(duration_s)}
+    over.update(scenario_options or {})
     scen = make_scenario(scenario, speed_kmh=speed_kmh, **over)
     dt = 0.01
     prof = scen.profile(dt, seed=None)
+    prof.check_vehicle(v)
     K = len(prof.t)
     k_sw = int(round(switch_s / dt))
     if not 0 < k_sw < K:
         raise IdentificationError(f"switch_s = {switch_s} s must lie inside the ride (0, {prof.t[-1]:.1f}) s")
-    plants = [compile_plant(effects={"tire_stiffness": {"front_scale": b, "rear_scale": b}}) for b in (before, after)]
+    plants = [compile_plant(v, {"tire_stiffness": {"front_scale": b, "rear_scale": b}}) for b in (before, after)]
     steppers = [Stepper(p, dt) for p in plants]
     cfg = SensorConfig.from_percent(noise_pct) if noise_pct is not None else SensorConfig()
     sens = SensorModel(cfg, None, dt=dt)
     root = np.random.SeedSequence(seed)
     s1, s2, s3 = root.spawn(3)
     sens.reset(np.random.default_rng(s1))
-    rider = LQRRider(torque_noise_nm=rider_noise_nm, dt=dt)
+    rider = LQRRider(v, torque_noise_nm=rider_noise_nm, dt=dt)
     rider.reset(np.random.default_rng(s2))
     x = np.zeros(8)
     x[0] = np.random.default_rng(s3).uniform(-0.005, 0.005)
@@ -687,10 +715,10 @@ def simulate_friction_drop(scenario: str = "urban", switch_s: float = 20.0, befo
     cols["vx_true"] = np.asarray(prof.vx, dtype=float)
     for j, nm in enumerate(STATE_NAMES):
         cols[f"x_{nm}"] = X[:, j]
-    meta = {"vehicle": "reference-scooter", "sample_rate_hz": 100, "scenario": scen.name,
+    meta = {**sidecar_vehicle(v), "sample_rate_hz": 100, "scenario": scen.name,
             "generator": "assist.estimation.identification.simulate_friction_drop", "noise_pct": noise_pct,
             "friction_drop": {"switch_s": switch_s, "before": before, "after": after}, "seeds": {"root": seed}}
-    c0 = build_lpv_model().theta0
+    c0 = build_lpv_model(v).theta0
     truth = np.where((np.arange(K) >= k_sw)[:, None], after * c0, before * c0)
     return RideLog(t=cols["t"], columns=cols, meta=meta, path=None), truth
 

@@ -115,8 +115,6 @@ OUTPUT_UNITS: tuple[str, ...] = ("rad", "rad/s", "rad/s", "rad/s", "m/s^2")
 VIRTUAL_NAME = "y_a"
 #: States whose derivatives the virtual sensor needs (all three measured).
 VIRTUAL_STATES: tuple[int, ...] = (R, PHI_DOT, DELTA_DOT)
-#: Default scheduling range of the observer [m/s] (29-122 km/h: the handling track's 40-120 km/h and the urban ride).
-DEFAULT_SPEED_RANGE = (8.0, 34.0)
 #: Roll bound of the Lipschitz box [rad] (model.md: the model is valid to 45 deg).
 PHI_MAX = math.pi / 4
 #: Steering bound of the Lipschitz box [rad] (steering angles are a few degrees; 20 deg is generous).
@@ -301,6 +299,10 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 def build_lpv_model(vehicle: Vehicle | None = None, vmin: float | None = None, vmax: float | None = None) -> LPVModel:
     """The LPV model of ``vehicle`` (default the reference scooter) scheduled on ``[vmin, vmax]`` [m/s].
 
+    A bound left out is the vehicle's own (:attr:`ptw_env.vehicle.Vehicle.control_range`: the
+    ``[speed_range] design_vmin/design_vmax`` of its file, else its valid range; 8-33 m/s for the
+    reference scooter), never a number of one vehicle.
+
     Raises
     ------
     LPVModelError
@@ -309,8 +311,8 @@ def build_lpv_model(vehicle: Vehicle | None = None, vmin: float | None = None, v
         only (a vehicle whose lateral/yaw rows differ in structure from model.md).
     """
     v = REFERENCE_SCOOTER if vehicle is None else vehicle
-    lo = DEFAULT_SPEED_RANGE[0] if vmin is None else float(vmin)
-    hi = DEFAULT_SPEED_RANGE[1] if vmax is None else float(vmax)
+    lo = v.control_range[0] if vmin is None else float(vmin)
+    hi = v.control_range[1] if vmax is None else float(vmax)
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise LPVModelError(f"speed range must satisfy vmin < vmax, got vmin={lo!r}, vmax={hi!r} m/s")
     if lo < v.vmin or hi > v.vmax:
@@ -510,7 +512,6 @@ def chi_entry(x, vx, H0, H1, j):
 
 
 __all__ = [
-    "DEFAULT_SPEED_RANGE",
     "DELTA_MAX",
     "LPVModel",
     "LPVModelError",

@@ -54,6 +54,7 @@ from ptw_env.friction import FrictionPlants, FrictionSchedule
 from ptw_env.scenarios import (Scenario, ScenarioError, require_positive, Segment, segments_to_grid, space_based,
                                speed_plan, make_scenario)
 from ptw_env.vehicle import G, REFERENCE_SCOOTER
+from ptw_env.vehicle_files import vehicle_of_log
 
 #: Base effects of every evaluation ride: saturating tires whose peak friction is the road's.
 EVAL_EFFECTS = "tire_saturation:mu_peak=0.9"
@@ -182,10 +183,11 @@ def make_case(kind: str, seed: int) -> RideCase:
 
 
 def true_utilisation(states: np.ndarray, vx: np.ndarray, mu: np.ndarray, friction: FrictionSchedule,
-                     effects=EVAL_EFFECTS) -> np.ndarray:
+                     effects=EVAL_EFFECTS, vehicle=None) -> np.ndarray:
     """``|F_ss,k| / Fmax_k`` per sample and axle (K, 2) from the true states, speeds and friction
-    (``Fmax = inf`` without tire_saturation: then ``|F_ss| / (mu Fz)``)."""
-    plants = FrictionPlants(friction, effects=as_effects(effects))
+    (``Fmax = inf`` without tire_saturation: then ``|F_ss| / (mu Fz)``), on ``vehicle`` (default the
+    reference scooter)."""
+    plants = FrictionPlants(friction, vehicle, effects=as_effects(effects))
     X = np.asarray(states, dtype=float)
     out = np.empty((len(X), 2))
     mu = np.asarray(mu, dtype=float)
@@ -284,8 +286,10 @@ class CaseResult:
         }
 
 
-def truth_from_log(log) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def truth_from_log(log, vehicle=None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """``(mu_true, true_utilisation, saturation_events)`` of a simulated log, or None.
+
+    ``vehicle``: the vehicle that rode it (default: the sidecar's, else the reference scooter).
 
     Needs the truth columns ``x_phi`` ... ``x_Fyr`` and ``vx_true`` (written by
     :func:`ptw_env.ride.ride_scenario`); the friction comes from a ``mu_true``
@@ -319,7 +323,12 @@ def truth_from_log(log) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     else:
         mu = np.full(len(t), 0.9)
     sched = sched or FrictionSchedule.constant(0.9)
-    util = true_utilisation(X, vx, mu, sched, effects)
+    if vehicle is None:
+        try:
+            vehicle = vehicle_of_log(log.meta or {}, getattr(log, "path", None))
+        except ValueError:
+            return None
+    util = true_utilisation(X, vx, mu, sched, effects, vehicle)
     return mu, util, saturation_events(t, util) if effects.has("tire_saturation") else np.array([])
 
 

@@ -76,11 +76,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ptw_env.friction import REFERENCE_FRICTION
-from ptw_env.vehicle import REFERENCE_SCOOTER
+from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
 
-_TP = REFERENCE_SCOOTER.tires
-#: Nominal stiffnesses ``C_0`` [N/rad] (model.md, derived tire parameters), order C_alpha_f, C_gamma_f, C_alpha_r, C_gamma_r.
-NOMINAL_STIFFNESS = np.array([_TP.C_alpha_f0, _TP.C_gamma_f0, _TP.C_alpha_r0, _TP.C_gamma_r0])
+
+def nominal_stiffness(vehicle: Vehicle) -> np.ndarray:
+    """The vehicle's nominal stiffnesses ``C_0`` [N/rad] (its tire parameters), order C_alpha_f, C_gamma_f,
+    C_alpha_r, C_gamma_r: what ``mu_ref`` friction gives."""
+    tp = vehicle.tires
+    return np.array([tp.C_alpha_f0, tp.C_gamma_f0, tp.C_alpha_r0, tp.C_gamma_r0])
+
+
+#: The reference scooter's nominal stiffnesses ``C_0`` [N/rad] (model.md, derived tire parameters).
+NOMINAL_STIFFNESS = nominal_stiffness(REFERENCE_SCOOTER)
 
 
 #: Lateral acceleration [m/s^2] above which a turn, not only the steering response, informs the estimate
@@ -202,16 +209,20 @@ class FrictionEstimate:
     Parameters
     ----------
     config : FrictionConfig, optional
+    vehicle : Vehicle, optional
+        Whose nominal stiffnesses the estimates are divided by (:func:`nominal_stiffness`; default the
+        reference scooter).
 
     Notes
     -----
     Feed :meth:`update` once per sample; :meth:`reset` starts again from the prior.
     """
 
-    def __init__(self, config: FrictionConfig | None = None) -> None:
+    def __init__(self, config: FrictionConfig | None = None, vehicle: Vehicle | None = None) -> None:
         self.config = FrictionConfig() if config is None else config
         if not isinstance(self.config, FrictionConfig):
             raise FrictionEstimateError(f"config must be a FrictionConfig, got {type(config).__name__}")
+        self.nominal = NOMINAL_STIFFNESS if vehicle is None else nominal_stiffness(vehicle)
         self.reset()
 
     def reset(self) -> None:
@@ -243,7 +254,7 @@ class FrictionEstimate:
         ok = np.isfinite(sig)
         self._ay_f[ok] += a * (sig[ok] - self._ay_f[ok])
         exc = float(np.max(np.abs(self._ay_f)))
-        mu_raw, raw_std = stiffness_to_friction(stiffness, stiffness_std, c.mu_ref, fallback_std=c.fallback_std)
+        mu_raw, raw_std = stiffness_to_friction(stiffness, stiffness_std, c.mu_ref, self.nominal, c.fallback_std)
         if exc >= c.excitation_min and raw_std <= c.max_informed_std * c.mu_ref:
             self._mu, self._var_last, self._t_last = mu_raw, raw_std**2, t
             informed, since, std = True, 0.0, raw_std
@@ -272,5 +283,6 @@ __all__ = [
     "FrictionEstimateError",
     "FrictionState",
     "NOMINAL_STIFFNESS",
+    "nominal_stiffness",
     "stiffness_to_friction",
 ]

@@ -322,9 +322,9 @@ class RiskMonitor:
     ----------
     config : RiskConfig, optional
     friction : FrictionEstimate, optional
-        The stiffness-to-friction stage (default: :class:`FrictionEstimate` with its defaults).
+        The stiffness-to-friction stage (default: :class:`FrictionEstimate` with its defaults, on ``vehicle``).
     vehicle : Vehicle, optional
-        For the static axle loads (default: the reference scooter).
+        For the static axle loads and the nominal stiffnesses (default: the reference scooter).
     """
 
     def __init__(self, config: RiskConfig | None = None, friction: FrictionEstimate | None = None,
@@ -332,8 +332,8 @@ class RiskMonitor:
         self.config = RiskConfig() if config is None else config
         if not isinstance(self.config, RiskConfig):
             raise RiskInputError(f"config must be a RiskConfig, got {type(config).__name__}")
-        self.friction = FrictionEstimate() if friction is None else friction
         v = REFERENCE_SCOOTER if vehicle is None else vehicle
+        self.friction = FrictionEstimate(vehicle=v) if friction is None else friction
         self.fz = np.array([v.tires.Fzf, v.tires.Fzr])
         self.reset()
 

@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 
 from ptw_env.logs import held_speed, sidecar_noise_pct
+from ptw_env.vehicle import Vehicle
+from ptw_env.vehicle_files import vehicle_of_log
 
 from .monitor import LEVELS, PathAhead, RiskAssessment, RiskConfig, RiskMonitor
 from .pipeline import OUTPUTS, MonitorInputs, RiskPipeline, default_estimator
@@ -112,7 +114,7 @@ class RiskRun:
 
 
 def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | None = None,
-               use_kappa: bool = True) -> RiskRun:
+               use_kappa: bool = True, vehicle: Vehicle | None = None) -> RiskRun:
     """Run the risk warning over a :class:`ptw_env.logs.RideLog` (module docstring).
 
     Parameters
@@ -124,6 +126,9 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
     noise_pct : float, optional
     use_kappa : bool
         Use a ``kappa`` column as the map when present (default True).
+    vehicle : Vehicle, optional
+        The vehicle of the default pipeline (default: the sidecar's, :func:`ptw_env.vehicle_files.vehicle_of_log`,
+        else the reference scooter).
 
     Examples
     --------
@@ -145,7 +150,8 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
     if pipeline is None:
         pct = noise_pct if noise_pct is not None else sidecar_noise_pct(log.meta)
         pct = DEFAULT_NOISE_PCT if pct is None else pct
-        pipeline = RiskPipeline(default_estimator(pct, dt))
+        v = vehicle if vehicle is not None else vehicle_of_log(log.meta or {}, getattr(log, "path", None))
+        pipeline = RiskPipeline(default_estimator(pct, dt, v, np.asarray(c["vx"], dtype=float)), vehicle=v)
     pipeline.reset()
     Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
     tau = np.asarray(c["tau"], dtype=float)

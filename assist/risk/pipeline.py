@@ -21,7 +21,7 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from ptw_env.vehicle import G
+from ptw_env.vehicle import G, REFERENCE_SCOOTER, Vehicle
 
 from .monitor import PathAhead, RiskAssessment, RiskMonitor
 
@@ -61,13 +61,16 @@ class StiffnessEstimator(Protocol):
 FRICTION_WALK = 0.05
 
 
-def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01):
+def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, vehicle: Vehicle | None = None,
+                      speeds: np.ndarray | None = None):
     """The LPV adaptive observer for the risk warning: Kalman vertex gains
     (:func:`assist.estimation.adaptive_design.kalman_design`) and one friction scale for all four stiffnesses
     (``parametrisation="friction"``, [1]_ sec. II-C ``Theta = mu Theta_0``), sensitivity law with the
     random walk :data:`FRICTION_WALK`; designed for ``noise_pct`` % sensor noise (``None``: the
-    reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s]; its plant's road bank
-    (``road_bank``, rad) is set by :class:`RiskPipeline`.
+    reference logs' sensors, designed as 0.5 %) at sample period ``dt`` [s], for ``vehicle`` (default the
+    reference scooter) over its design range, else over ``speeds`` [m/s] (a log's; see
+    :func:`assist.estimation.adaptive_design.design_for_vehicle`); its plant's road bank (``road_bank``,
+    rad) is set by :class:`RiskPipeline`.
 
     The road's bank must be known: the model has no other place for it, so a bank's steady side force
     is read as a stiffness change (measured on a simulated urban ride at friction 0.9: ``mu_hat`` ends
@@ -83,11 +86,12 @@ def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01):
 
     .. [1] M. Fouka, L. Nehaoua, H. Arioui (``shared/papers/000_348caefc9b08ee38.txt``).
     """
-    from assist.estimation.adaptive_design import AdaptiveDesignOptions, default_kalman_design
+    from assist.estimation.adaptive_design import AdaptiveDesignOptions, design_for_vehicle
     from assist.estimation.adaptive_observer import AdaptiveObserver
 
     pct = 0.5 if noise_pct is None else max(float(noise_pct), 0.5)
-    design = default_kalman_design(AdaptiveDesignOptions(noise_pct=pct, dt=round(float(dt), 9)))
+    design = design_for_vehicle(REFERENCE_SCOOTER if vehicle is None else vehicle,
+                                AdaptiveDesignOptions(noise_pct=pct, dt=round(float(dt), 9)), "kalman", speeds)
     return AdaptiveObserver(design, parametrisation="friction", stiffness_walk=FRICTION_WALK)
 
 
@@ -167,9 +171,9 @@ class RiskPipeline:
     Parameters
     ----------
     estimator : StiffnessEstimator, optional
-        Default: :func:`default_estimator` ().
+        Default: :func:`default_estimator` for ``vehicle``.
     monitor : RiskMonitor, optional
-        Default: :class:`RiskMonitor` with its defaults.
+        Default: :class:`RiskMonitor` with its defaults for ``vehicle`` (its axle loads and nominal stiffnesses).
     road_bank : "auto", float or None
         ``"auto"`` (default): the bank is estimated on line by :class:`BankEstimate` and given to
         the estimator before every sample, if the estimator has a settable ``road_bank`` (as
@@ -179,15 +183,17 @@ class RiskPipeline:
         with a cross-fall of 0.02-0.04 rad, and a level-road estimator reads it as grip
         (``scripts/eval_risk.py``, 20 dry rides on such banks: friction over-estimated by up to 45 %
         and a false danger in 9 of them; estimated on line, none, and the level-road rides are as good).
+    vehicle : Vehicle, optional
+        The vehicle of the default estimator and monitor (default the reference scooter).
     """
 
     def __init__(self, estimator=None, monitor: RiskMonitor | None = None,
-                 road_bank: float | str | None = "auto") -> None:
-        self.estimator = default_estimator() if estimator is None else estimator
+                 road_bank: float | str | None = "auto", vehicle: Vehicle | None = None) -> None:
+        self.estimator = default_estimator(vehicle=vehicle) if estimator is None else estimator
         if not isinstance(self.estimator, StiffnessEstimator):
             raise TypeError("estimator must have update(y, tau, vx), reset(), stiffness and stiffness_std; "
                             f"got {type(self.estimator).__name__}")
-        self.monitor = RiskMonitor() if monitor is None else monitor
+        self.monitor = RiskMonitor(vehicle=vehicle) if monitor is None else monitor
         self.bank_estimate: BankEstimate | None = None
         settable = hasattr(self.estimator, "road_bank")
         if road_bank == "auto":

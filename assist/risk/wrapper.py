@@ -57,7 +57,7 @@ class RiskWarningWrapper(gym.Wrapper):
         layout and, for the map, its ``profile`` (``s``, ``kappa``) and ``dt``.
     pipeline : RiskPipeline, optional
         Estimator and monitor (default: the adaptive observer designed for the
-        environment's noise level, see :func:`assist.risk.pipeline.default_estimator`).
+        environment's vehicle and noise level, see :func:`assist.risk.pipeline.default_estimator`).
     use_map : bool
         Preview the road ahead from the scenario's curvature profile (default True).
     info_key : str
@@ -71,7 +71,8 @@ class RiskWarningWrapper(gym.Wrapper):
         self._dt = float(getattr(base, "dt", 0.01))
         if pipeline is None:
             noise = _noise_pct_of(base)
-            pipeline = RiskPipeline(default_estimator(noise, self._dt))
+            v = getattr(base, "vehicle", None)
+            pipeline = RiskPipeline(default_estimator(noise, self._dt, v), vehicle=v)
         self.pipeline = pipeline
         self.use_map = bool(use_map)
         self.info_key = str(info_key)
