@@ -119,7 +119,8 @@ class Vehicle:
         Derived tire data.
     vmin, vmax : float
         Valid forward-speed range [m/s] of the model (the environment ends an
-        episode outside it).
+        episode outside it). Required: a speed range is a number of one vehicle
+        (the reference scooter's 3-40 m/s is model.md's), never a default.
     provenance : Mapping[str, str]
         Where each group of numbers comes from.
     steer_lock : float
@@ -146,8 +147,8 @@ class Vehicle:
     B: np.ndarray
     mass: float
     tires: TireParameters
-    vmin: float = 3.0
-    vmax: float = 40.0
+    vmin: float
+    vmax: float
     provenance: Mapping[str, str] = field(default_factory=dict)
     steer_lock: float = math.pi / 2
     design_range: tuple[float, float] | None = None
