@@ -165,11 +165,38 @@ def test_estimate_and_risk_run_on_the_log_of_another_vehicle(tmp_path, capsys, c
     assert "'cossalter-sport-touring'" in err and "'sharp1971'" in err
 
 
-def test_train_rl_refuses_another_vehicle_before_any_work(tmp_path, capsys):
-    out = tmp_path / "p.zip"
-    assert main(["train-rl", "--vehicle", "robot-bicycle", "--out", str(out), "--steps", "10"]) == 2
-    assert "reference scooter only" in _one_error(capsys, "train-rl")
-    assert not out.exists()
+def test_train_rl_trains_for_another_vehicle_and_policies_stay_with_their_vehicle(tmp_path, capsys):
+    """train-rl --vehicle: the rides, speeds (its design range), torque (its tau_max) and the encoder's speed
+    scaling are the vehicle's, and the policy file says which vehicle; a policy only drives its own vehicle
+    (the shipped one, trained on the scooter, is refused on the bicycle, and the reverse); speeds outside the
+    vehicle are refused before any work, nothing written."""
+    pytest.importorskip("stable_baselines3")
+    from ptw_env.env import PTWRollEnv
+    from ptw_env.vehicle_files import load_vehicle
+
+    bike = load_vehicle("robot-bicycle")
+    bad = tmp_path / "bad.zip"
+    assert main(["train-rl", "--vehicle", "robot-bicycle", "--speeds", "5,60", "--out", str(bad), "--steps", "10"]) == 2
+    assert "robot-bicycle" in _one_error(capsys, "train-rl") and not bad.exists()
+    out = tmp_path / "bike.zip"
+    assert main(["train-rl", "--vehicle", "robot-bicycle", "--out", str(out), "--steps", "2048", "--n-envs", "2",
+                 "--no-progress", "--checkpoint-every", "0"]) == 0
+    meta = json.loads(out.with_suffix(".json").read_text())
+    lo, hi = bike.control_range
+    assert meta["vehicle"]["model_sha256"] == bike.identity()["model_sha256"]
+    assert meta["distribution"]["speed_kmh"] == pytest.approx([3.6 * lo, 3.6 * hi])
+    assert meta["tau_max"] == pytest.approx(PTWRollEnv(vehicle=bike, scenario="double_lane_change",
+                                                       speed_kmh=14.0).tau_max)
+    vx = meta["encoder"]["center"][5], meta["encoder"]["scale"][5]
+    assert vx == pytest.approx((0.5 * (lo + hi), 0.5 * (hi - lo)))
+    capsys.readouterr()
+    assert main(["evaluate", "--vehicle", "robot-bicycle", "--speed", "14", "--controller", "rl",
+                 "--policy", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", "--vehicle", "robot-bicycle", "--speed", "14", "--controller", "rl"]) == 2
+    assert "trained on the vehicle 'reference-scooter'" in _one_error(capsys, "evaluate")
+    assert main(["evaluate", "--controller", "rl", "--policy", str(out)]) == 2
+    assert "trained on the vehicle 'robot-bicycle'" in _one_error(capsys, "evaluate")
 
 
 def test_a_scenario_speed_outside_the_vehicle_says_which_speeds_work(tmp_path, capsys):

@@ -13,7 +13,6 @@ import sys
 from pathlib import Path
 
 from ptw_env.cli import SEED, CLIError, add_vehicle_option, check_outputs, chosen_vehicle, command, emit, number
-from ptw_env.vehicle import REFERENCE_SCOOTER
 
 #: Settings of the shipped policy (``assist/policies/ppo_roll.json``).
 DEFAULT_STEPS = 6_000_000
@@ -36,6 +35,9 @@ def _build_train_rl(p: argparse.ArgumentParser):
                    help=f"environment steps of 10 ms over all copies (default {DEFAULT_STEPS}, the shipped policy's)")
     p.add_argument("--seed", type=SEED, default=0, metavar="N",
                    help="seed of torch, numpy and the environments (default 0)")
+    p.add_argument("--speeds", default=None, metavar="LO,HI",
+                   help="cruise speeds of the training rides [km/h] (default: the vehicle's design range; "
+                        "the shipped policy: 30,90)")
     p.add_argument("--n-envs", type=_int_at_least(1, 4096), default=4, metavar="N", help="environment copies (default 4)")
     p.add_argument("--vec", choices=("dummy", "subproc"), default="dummy",
                    help="copies in this process or one process each (default dummy: faster here, scripts/bench_rl.py)")
@@ -52,11 +54,22 @@ def _build_train_rl(p: argparse.ArgumentParser):
     def run(a: argparse.Namespace) -> int:
         from assist.rl import train
 
+        from assist.rl import PolicyError, TrainingDistribution
+
         v = chosen_vehicle(a)
-        if v.identity()["model_sha256"] != REFERENCE_SCOOTER.identity()["model_sha256"]:
-            raise CLIError(f"--vehicle {v.name!r}: the training distribution (speeds 30-90 km/h, torque scale, "
-                           f"reward) is defined for the reference scooter only; training on another vehicle is not "
-                           f"supported yet")
+        speeds = None
+        if a.speeds is not None:
+            parts = a.speeds.split(",")
+            try:
+                speeds = tuple(number(0, 1e4, unit="km/h", lo_open=True)(x.strip()) for x in parts)
+            except argparse.ArgumentTypeError as exc:
+                raise CLIError(f"--speeds {a.speeds!r}: {exc}") from None
+            if len(speeds) != 2:
+                raise CLIError(f"--speeds {a.speeds!r}: expected two speeds LO,HI in km/h")
+        try:
+            dist = TrainingDistribution(speed_kmh=speeds).for_vehicle(v)
+        except PolicyError as exc:
+            raise CLIError(f"--speeds: {exc}") from None
         out = Path(a.out)
         if out.suffix != ".zip":
             raise CLIError(f"--out: the policy file must end in .zip, got {out.name!r}")
@@ -73,7 +86,8 @@ def _build_train_rl(p: argparse.ArgumentParser):
             raise FileExistsError(f"{ck} exists; pass --overwrite to write checkpoints into it")
         cmd = "ptw-assist " + " ".join(shlex.quote(x) for x in sys.argv[1:]) if sys.argv else None
         res = train(a.algo, a.steps, a.seed, out, n_envs=a.n_envs, vec=a.vec, threads=a.threads,
-                    checkpoint_every=a.checkpoint_every or None, progress=not a.no_progress, command=cmd)
+                    checkpoint_every=a.checkpoint_every or None, progress=not a.no_progress, command=cmd,
+                    env_kwargs={"vehicle": v, "distribution": dist})
         print(f"{a.algo} trained {res.steps} steps (seed {a.seed}) in {res.seconds:.0f} s; mean return over "
               f"{res.meta['eval_rides']['episodes']} evaluation rides: trained {res.final_reward:.0f}, untrained "
               f"{res.initial_reward:.0f}, random actions {res.random_reward:.0f} (1 per 10 ms step of perfect tracking)")

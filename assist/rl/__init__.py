@@ -27,8 +27,9 @@ Training distribution
 :class:`TrainingEnv` draws every episode (from its seeded generator) from
 :class:`TrainingDistribution`: double lane change, slalom, constant radius
 with acceleration, urban ride and the handling track, at speeds within
-30-90 km/h, sensor noise uniform in 0-6 % of each channel's range, and
-mirrored (left/right) with probability 1/2. Kept *out* of training to
+30-90 km/h (the shipped policy's; by default now the vehicle's design range, 28.8-118.8 km/h on the
+reference scooter, ``train-rl --speeds 30,90`` for the shipped one's), sensor noise uniform in 0-6 % of
+each channel's range, and mirrored (left/right) with probability 1/2. Kept *out* of training to
 measure robustness: speeds below 30 and above 90 km/h (``scripts/eval_rl.py``
 rides the lane change from 20 to 120 km/h; the default constant-radius test
 accelerates to 100 km/h and 38 deg of lean, beyond the 35 deg of the

@@ -14,6 +14,7 @@ import numpy as np
 
 from ptw_env.env import OBS_NAMES, PTWRollEnv
 from ptw_env.sensors import CHANNEL_RANGES
+from ptw_env.vehicle import REFERENCE_SCOOTER
 
 #: Algorithms of ``ptw-assist train-rl --algo``.
 ALGOS = ("ppo", "sac")
@@ -114,6 +115,18 @@ class ObsEncoder:
         """JSON-able settings (stored in the policy file)."""
         return {"format": ENCODER_FORMAT, "frames": self.frames, "prev_action": self.prev_action,
                 "scale": list(self.scale), "center": list(self.center), "clip": self.clip}
+
+    @classmethod
+    def for_speeds(cls, vmin: float, vmax: float, **kwargs: Any) -> "ObsEncoder":
+        """The encoder whose ``vx`` feature spans ``[vmin, vmax]`` [m/s] as ``[-1, 1]`` (centre the middle, scale
+        half the width), the other channels as the default; for training on a vehicle's speed range."""
+        if not (0 < vmin < vmax and math.isfinite(vmax)):
+            raise PolicyError(f"ObsEncoder.for_speeds needs 0 < vmin < vmax [m/s], got {vmin!r}, {vmax!r}")
+        base = cls(**kwargs)
+        scale, center = list(base.scale), list(base.center)
+        i = OBS_CHANNELS.index("vx")
+        center[i], scale[i] = 0.5 * (vmin + vmax), 0.5 * (vmax - vmin)
+        return cls(**{**kwargs, "scale": tuple(scale), "center": tuple(center)})
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any]) -> "ObsEncoder":
@@ -316,7 +329,9 @@ class RLAdapter:
     env : PTWRollEnv
         The evaluation environment (torque action in N m, ``dt`` 10 ms).
     policy : str, path or RLPolicy, optional
-        A policy file from ``ptw-assist train-rl`` (default: the shipped policy).
+        A policy file from ``ptw-assist train-rl`` (default: the shipped policy). It must have been
+        trained on the environment's vehicle (the policy's ``vehicle``; a policy without one was trained
+        on the reference scooter).
     """
 
     name = "rl"
@@ -325,6 +340,12 @@ class RLAdapter:
         self.policy = policy if isinstance(policy, RLPolicy) else load_policy(policy)
         if env.observe_roll:
             raise PolicyError("the RL policy is trained without the roll angle; use observe_roll=False")
+        trained_on = self.policy.meta.get("vehicle") or REFERENCE_SCOOTER.identity()  # before 'vehicle' was kept
+        if not isinstance(trained_on, Mapping) or \
+                trained_on.get("model_sha256") != env.vehicle.identity()["model_sha256"]:
+            name = trained_on.get("name") if isinstance(trained_on, Mapping) else trained_on
+            raise PolicyError(f"the policy was trained on the vehicle {name!r}, the environment rides "
+                              f"{env.vehicle.name!r}: train one for it with 'ptw-assist train-rl --vehicle'")
         dt = float(self.policy.meta.get("dt", 0.01))
         if abs(env.dt - dt) > 1e-12:
             raise PolicyError(f"the policy runs at dt = {dt} s, the environment at {env.dt} s")

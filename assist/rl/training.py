@@ -9,7 +9,7 @@ import os
 import platform
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -18,8 +18,9 @@ import numpy as np
 from gymnasium import spaces
 
 from ptw_env.env import PTWRollEnv
+from ptw_env.rider import DEFAULT_TAU_MAX
 from ptw_env.scenarios import make_scenario
-from ptw_env.vehicle import G
+from ptw_env.vehicle import G, REFERENCE_SCOOTER, Vehicle
 
 from assist.rl.policy import ALGOS, ObsEncoder, PolicyError, RLPolicy, _algo_class, _MIRROR, require_sb3
 
@@ -29,9 +30,11 @@ class TrainingDistribution:
 
     Parameters
     ----------
-    speed_kmh : (float, float)
+    speed_kmh : (float, float) or None
         Range of cruise speeds [km/h] (uniform); the constant-radius,
-        urban and handling rides stay inside it too.
+        urban and handling rides stay inside it too. None (default): the
+        vehicle's design range (:meth:`for_vehicle`; 28.8-118.8 km/h for the
+        reference scooter; the shipped policy was trained on 30-90, its sidecar says so).
     noise_pct : (float, float)
         Sensor noise range, percent of each channel's range (uniform).
     weights : mapping scenario -> float
@@ -42,7 +45,7 @@ class TrainingDistribution:
         Mirror half of the episodes left/right (the dynamics are odd).
     """
 
-    speed_kmh: tuple[float, float] = (30.0, 90.0)
+    speed_kmh: tuple[float, float] | None = None
     noise_pct: tuple[float, float] = (0.0, 6.0)
     weights: tuple[tuple[str, float], ...] = (
         ("double_lane_change", 0.3), ("slalom", 0.2), ("constant_radius", 0.2), ("urban", 0.15), ("handling", 0.15),
@@ -50,8 +53,22 @@ class TrainingDistribution:
     max_lean_deg: float = 35.0
     mirror: bool = True
 
+    def for_vehicle(self, vehicle: Vehicle) -> "TrainingDistribution":
+        """This distribution with its speeds resolved: ``speed_kmh`` as given (checked inside the vehicle's
+        valid range), else the vehicle's :attr:`~ptw_env.vehicle.Vehicle.control_range` in km/h."""
+        if self.speed_kmh is None:
+            lo, hi = vehicle.control_range
+            return replace(self, speed_kmh=(round(3.6 * lo, 6), round(3.6 * hi, 6)))
+        lo, hi = (float(x) for x in self.speed_kmh)
+        if not (3.6 * vehicle.vmin - 1e-9 <= lo < hi <= 3.6 * vehicle.vmax + 1e-9):
+            raise PolicyError(f"training speeds {lo:g}-{hi:g} km/h: need lo < hi within the valid range of "
+                              f"{vehicle.name}, {3.6 * vehicle.vmin:g}-{3.6 * vehicle.vmax:g} km/h")
+        return self
+
     def draw(self, rng: np.random.Generator) -> dict[str, Any]:
         """One episode: ``{"scenario": Scenario, "noise_pct", "mirror", "scenario_seed", "label"}``."""
+        if self.speed_kmh is None:
+            raise PolicyError("TrainingDistribution.speed_kmh is unresolved: call for_vehicle(vehicle) first")
         names = [n for n, _ in self.weights]
         p = np.array([w for _, w in self.weights], dtype=float)
         name = names[int(rng.choice(len(names), p=p / p.sum()))]
@@ -83,7 +100,7 @@ class TrainingDistribution:
                 "mirror": bool(self.mirror and rng.random() < 0.5), "scenario_seed": seed, "label": name}
 
     def describe(self) -> dict[str, Any]:
-        return {"speed_kmh": list(self.speed_kmh), "noise_pct": list(self.noise_pct),
+        return {"speed_kmh": None if self.speed_kmh is None else list(self.speed_kmh), "noise_pct": list(self.noise_pct),
                 "weights": dict(self.weights), "max_lean_deg": self.max_lean_deg, "mirror": self.mirror}
 
 
@@ -111,8 +128,12 @@ class TrainingEnv(gym.Env):
     fixed : dict, optional
         Instead of the distribution, always this ride:
         ``{"scenario": name, "speed_kmh": ..., "noise_pct": ...}``.
-    tau_max : float
-        Steering torque of action 1 [N m].
+    tau_max : float, optional
+        Steering torque of action 1 [N m] (default the environment's for the vehicle: 60 N m on the
+        reference scooter, scaled by ``torque_ratio`` on another).
+    vehicle : Vehicle, optional
+        The vehicle ridden (default the reference scooter); the distribution's speeds and the default
+        encoder's ``vx`` scaling follow its design range (:meth:`ObsEncoder.for_speeds`).
     smooth_weight : float
         Training-only shaping: ``smooth_weight (a_k - a_{k-1})^2`` is taken
         from the reward the agent learns from (the environment's own reward
@@ -124,17 +145,21 @@ class TrainingEnv(gym.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, distribution: TrainingDistribution | None = None, encoder: Mapping[str, Any] | None = None,
-                 fixed: Mapping[str, Any] | None = None, tau_max: float = 60.0,
-                 smooth_weight: float = SMOOTH_WEIGHT) -> None:
+                 fixed: Mapping[str, Any] | None = None, tau_max: float | None = None,
+                 smooth_weight: float = SMOOTH_WEIGHT, vehicle: Vehicle | None = None) -> None:
         super().__init__()
         if not (isinstance(smooth_weight, (int, float)) and math.isfinite(smooth_weight) and smooth_weight >= 0):
             raise PolicyError(f"smooth_weight must be a number >= 0, got {smooth_weight!r}")
         self.smooth_weight = float(smooth_weight)
         self._a_prev = 0.0
-        self.distribution = distribution or TrainingDistribution()
-        self.encoder = ObsEncoder.from_config(encoder) if encoder else ObsEncoder()
+        self.vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
+        if not isinstance(self.vehicle, Vehicle):
+            raise PolicyError(f"vehicle must be a Vehicle (ptw_env.load_vehicle), got {type(vehicle).__name__}")
+        self.distribution = (distribution or TrainingDistribution()).for_vehicle(self.vehicle)
+        lo, hi = self.distribution.speed_kmh
+        self.encoder = ObsEncoder.from_config(encoder) if encoder else ObsEncoder.for_speeds(lo / 3.6, hi / 3.6)
         self.fixed = dict(fixed) if fixed else None
-        self.tau_max = float(tau_max)
+        self.tau_max = float(DEFAULT_TAU_MAX * self.vehicle.torque_ratio if tau_max is None else tau_max)
         c = self.encoder.clip
         self.observation_space = spaces.Box(-c, c, shape=(self.encoder.dim,), dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
@@ -148,12 +173,12 @@ class TrainingEnv(gym.Env):
             f = self.fixed
             self._sign, self._label = 1.0, str(f["scenario"])
             return PTWRollEnv(f["scenario"], speed_kmh=f.get("speed_kmh"), noise_pct=f.get("noise_pct", 5.0),
-                              normalize_action=True, tau_max=self.tau_max)
+                              normalize_action=True, tau_max=self.tau_max, vehicle=self.vehicle)
         ep = self.distribution.draw(self.np_random)
         self._sign = -1.0 if ep["mirror"] else 1.0
         self._label = ep["label"]
         return PTWRollEnv(ep["scenario"], noise_pct=ep["noise_pct"], normalize_action=True, tau_max=self.tau_max,
-                          scenario_seed=ep["scenario_seed"])
+                          scenario_seed=ep["scenario_seed"], vehicle=self.vehicle)
 
     def _flip(self, obs: np.ndarray) -> np.ndarray:
         return obs * _MIRROR if self._sign < 0 else obs
@@ -320,8 +345,9 @@ def build_model(algo: str = "ppo", seed: int = 0, n_envs: int = 4, vec: str = "d
 
     torch.set_num_threads(int(threads))
     env_kwargs = dict(env_kwargs or {})
-    encoder = ObsEncoder.from_config(env_kwargs["encoder"]) if env_kwargs.get("encoder") else ObsEncoder()
-    env_kwargs["encoder"] = encoder.config()
+    probe = TrainingEnv(**env_kwargs)  # resolves the vehicle's speeds, encoder and torque once, checked
+    encoder = probe.encoder
+    env_kwargs.update(encoder=encoder.config(), distribution=probe.distribution, tau_max=probe.tau_max)
     venv = _vec_env(n_envs, seed, vec, env_kwargs)
     params = dict(PPO_DEFAULTS if algo == "ppo" else SAC_DEFAULTS)
     params.update(hyper or {})
@@ -415,10 +441,11 @@ def train(
     if progress:
         callbacks.append(_tqdm_callback(int(steps)))
     meta = {
-        "algo": algo, "encoder": encoder.config(), "tau_max": float(env_kwargs.get("tau_max", 60.0)), "dt": 0.01,
+        "algo": algo, "encoder": encoder.config(), "tau_max": float(env_kwargs["tau_max"]), "dt": 0.01,
+        "vehicle": (env_kwargs.get("vehicle") or REFERENCE_SCOOTER).identity(),
         "seed": int(seed),
         "steps": int(steps), "n_envs": int(n_envs), "vec": vec, "threads": int(threads),
-        "distribution": (env_kwargs.get("distribution") or TrainingDistribution()).describe()
+        "distribution": env_kwargs["distribution"].describe()
         if not env_kwargs.get("fixed") else {"fixed": dict(env_kwargs["fixed"])},
         "smooth_weight": float(env_kwargs.get("smooth_weight", SMOOTH_WEIGHT)),
         "hyper": json.loads(json.dumps(params, default=str)), "versions": versions(), "command": command,
