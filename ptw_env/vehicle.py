@@ -84,18 +84,36 @@ class TireParameters:
     ``gamma_r = phi``.
     """
 
-    sigma_f: float = 0.2  #: front relaxation length [m] (a77 = -vx/sigma_f = -5 vx)
-    sigma_r: float = 0.2  #: rear relaxation length [m] (a88 = -5 vx)
-    C_alpha_f0: float = 22486.0  #: front cornering stiffness [N/rad] (= -a73 sigma_f)
-    C_gamma_f0: float = 1063.8  #: front camber stiffness [N/rad] (= a71/vx sigma_f)
-    C_alpha_r0: float = 20178.0  #: rear cornering stiffness [N/rad] (= -a83 sigma_r)
-    C_gamma_r0: float = 644.36  #: rear camber stiffness [N/rad] (= a81/vx sigma_r)
-    caster: float = 0.43631  #: caster angle eps [rad] (= asin(a62/a52) = 25.0 deg)
-    trail: float = 0.0894  #: mechanical trail eta [m] (= -a67)
-    lf_slip: float = 0.756  #: front slip arm [m] (= a74/a73)
-    lr_slip: float = 0.784  #: rear slip arm [m] (= a84/a83)
-    Fzf: float = 303.31 * G * 0.624 / (0.856 + 0.624)  #: static front load [N] (1254.5)
-    Fzr: float = 303.31 * G * 0.856 / (0.856 + 0.624)  #: static rear load [N] (1721.0)
+    sigma_f: float  #: front relaxation length [m]
+    sigma_r: float  #: rear relaxation length [m]
+    C_alpha_f0: float  #: front cornering stiffness [N/rad]
+    C_gamma_f0: float  #: front camber stiffness [N/rad]
+    C_alpha_r0: float  #: rear cornering stiffness [N/rad]
+    C_gamma_r0: float  #: rear camber stiffness [N/rad]
+    caster: float  #: caster angle eps [rad]
+    trail: float  #: mechanical trail eta [m]
+    lf_slip: float  #: front slip arm [m]
+    lr_slip: float  #: rear slip arm [m]
+    Fzf: float  #: static front load [N]
+    Fzr: float  #: static rear load [N]
+
+
+#: The reference scooter's tires, derived from model.md's rows 7-8 (every field is a number of that one vehicle,
+#: so none is a default of :class:`TireParameters`).
+REFERENCE_TIRES = TireParameters(
+    sigma_f=0.2,  # a77 = -vx/sigma_f = -5 vx
+    sigma_r=0.2,  # a88 = -5 vx
+    C_alpha_f0=22486.0,  # = -a73 sigma_f
+    C_gamma_f0=1063.8,  # = a71/vx sigma_f
+    C_alpha_r0=20178.0,  # = -a83 sigma_r
+    C_gamma_r0=644.36,  # = a81/vx sigma_r
+    caster=0.43631,  # = asin(a62/a52) = 25.0 deg
+    trail=0.0894,  # = -a67
+    lf_slip=0.756,  # = a74/a73
+    lr_slip=0.784,  # = a84/a83
+    Fzf=303.31 * G * 0.624 / (0.856 + 0.624),  # M g arms from a47, a48 (1254.5)
+    Fzr=303.31 * G * 0.856 / (0.856 + 0.624),  # (1721.0)
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -318,7 +336,7 @@ def reference_scooter() -> Vehicle:
         A1=_A1,
         B=_B,
         mass=303.31,
-        tires=TireParameters(),
+        tires=REFERENCE_TIRES,
         vmin=3.0,
         vmax=40.0,
         design_range=(8.0, 33.0),
