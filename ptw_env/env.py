@@ -183,7 +183,8 @@ class PTWRollEnv(gym.Env):
     sensors : SensorConfig, optional
         Noise, bias and quantisation (default: the reference logs' sensors).
     noise_pct : float, optional
-        Shortcut for ``SensorConfig.from_percent(noise_pct)``.
+        Shortcut for ``SensorConfig.from_percent(noise_pct, vehicle=vehicle)`` (percent of the vehicle's
+        channel ranges, :func:`ptw_env.sensors.channel_ranges`).
     effects : Effects, dict or list of "CAUSE:PARAM=VALUE", optional
         Effects of effects.md in the *true* plant (dynamic and sensor effects).
     prior_effects, prior_vehicle : optional
@@ -268,10 +269,11 @@ class PTWRollEnv(gym.Env):
             raise EnvConfigError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if sensors is not None and noise_pct is not None:
             raise EnvConfigError("give either sensors= or noise_pct=, not both")
+        self.vehicle = _as_vehicle("vehicle", vehicle) or REFERENCE_SCOOTER
         if noise_pct is not None:
             if not isinstance(noise_pct, (int, float)) or not math.isfinite(noise_pct) or noise_pct < 0:
                 raise EnvConfigError(f"noise_pct must be a number >= 0 (percent of each channel's range), got {noise_pct!r}")
-            sensors = SensorConfig.from_percent(float(noise_pct))
+            sensors = SensorConfig.from_percent(float(noise_pct), vehicle=self.vehicle)  # its channel ranges
         self.sensor_config = SensorConfig() if sensors is None else sensors
         if not isinstance(self.sensor_config, SensorConfig):
             raise EnvConfigError(f"sensors must be a SensorConfig, got {type(sensors).__name__}")
@@ -285,7 +287,6 @@ class PTWRollEnv(gym.Env):
         else:
             raise EnvConfigError(f"scenario must be a name or a Scenario, got {type(scenario).__name__}")
 
-        self.vehicle = _as_vehicle("vehicle", vehicle) or REFERENCE_SCOOTER
         self.effects = as_effects(effects)
         if self.effects.batch_shape:
             raise EnvConfigError("effects in the environment must be scalars (one vehicle)")

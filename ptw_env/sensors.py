@@ -103,6 +103,41 @@ CHANNEL_RANGES: Mapping[str, float] = MappingProxyType(
     }
 )
 
+def channel_ranges(vehicle: Any = None) -> Mapping[str, float]:
+    """The "100 %" of percent-of-range noise for ``vehicle`` (default: the reference scooter, :data:`CHANNEL_RANGES`).
+
+    :data:`CHANNEL_RANGES` is the amplitude of the reference scooter's signals in an everyday ride. Another
+    vehicle ridden at the same lateral acceleration ``a_y`` (the envelope is the road's friction, not the
+    vehicle's) at the middle ``v`` of its design range (:attr:`ptw_env.vehicle.Vehicle.control_range`) turns
+    with the kinematics of a steady turn: roll ``atan(a_y / g)`` and ``a_y`` itself are the same, the yaw rate
+    ``a_y / v`` scales as ``1 / v``, the steer angle as the kinematic steer ``L a_y / v^2`` (``L = lf_slip +
+    lr_slip``, the wheelbase); the roll and steer rates are those amplitudes over the manoeuvre's time scale,
+    which is the rider's (a lane change takes a second or two on any two-wheeler), so they scale like their
+    angles; ``vx`` as the valid top speed:
+
+    .. math::  R_c(\text{vehicle}) = R_c(\text{ref}) \, k_c, \quad k_{yaw} = v_0 / v, \;
+               k_\delta = k_{\dot\delta} = (L / v^2) / (L_0 / v_0^2), \; k_\phi = k_{\dot\phi} = k_{a_y} = 1,
+
+    with ``v_0``, ``L_0`` the reference scooter's: every ratio is exactly 1 for it. Checked against the
+    linear model's steady turn (``r / a_y = 1 / v``, ``phi / a_y = 1 / g`` within 4 % on every preset) and
+    against the 14 measured robot-bicycle rides (their largest |signals|: delta 0.30 rad, delta_rate 2.0
+    rad/s, yaw rate 0.84 rad/s, roll rate 0.59 rad/s, a_y 3.5 m/s^2; these ranges are 1.0 rad, 4.1 rad/s,
+    2.7 rad/s, 1.0 rad/s, 5 m/s^2: of the same order, larger, as those rides are gentle), in
+    ``tests/test_sensors.py``.
+    """
+    from .vehicle import REFERENCE_SCOOTER
+
+    ref = REFERENCE_SCOOTER
+    if vehicle is None or vehicle is ref:
+        return CHANNEL_RANGES
+    v0, v = (0.5 * sum(x.control_range) for x in (ref, vehicle))
+    L0, L = (x.tires.lf_slip + x.tires.lr_slip for x in (ref, vehicle))
+    k_delta = (L / v**2) / (L0 / v0**2)
+    k = {"delta": k_delta, "delta_rate": k_delta, "yaw_rate": v0 / v, "roll_rate": 1.0, "ay": 1.0,
+         "roll": 1.0, "vx": vehicle.vmax / ref.vmax}
+    return MappingProxyType({c: CHANNEL_RANGES[c] * k[c] for c in CHANNEL_RANGES})
+
+
 #: Default white-noise standard deviations, physical units, equal to the sidecars
 #: of the reference logs (``shared/data/*.json``, "notes").
 DEFAULT_NOISE_STD: Mapping[str, float] = MappingProxyType(
@@ -264,11 +299,13 @@ class SensorConfig:
         delta_quantum: float | None = ENCODER_QUANTUM,
         gps_rate_hz: float = GPS_RATE_HZ,
         noise_before_quantisation: bool = False,
+        vehicle: Any = None,
     ) -> "SensorConfig":
         """Noise as a percentage of each channel's range (the papers' "5 % noise").
 
-        ``noise_std[c] = pct / 100 * CHANNEL_RANGES[c]`` for the six IMU and
-        encoder channels (:data:`DELAYED_CHANNELS`); ``vx`` keeps the physical
+        ``noise_std[c] = pct / 100 * R_c`` for the six IMU and
+        encoder channels (:data:`DELAYED_CHANNELS`), ``R = channel_ranges(vehicle)``
+        (:data:`CHANNEL_RANGES` for the reference scooter, the default); ``vx`` keeps the physical
         ``vx_std`` [m/s].
 
         Parameters
@@ -280,7 +317,10 @@ class SensorConfig:
             GPS speed noise [m/s].
         bias, delta_quantum, gps_rate_hz, noise_before_quantisation
             As :class:`SensorConfig`.
+        vehicle : Vehicle, optional
+            Whose channel ranges (:func:`channel_ranges`).
         """
+        ranges = channel_ranges(vehicle)
         if isinstance(pct, Mapping):
             pcts = dict(pct)
             if "vx" in pcts:
@@ -297,7 +337,7 @@ class SensorConfig:
                 raise SensorConfigError(f"pct[{c!r}] must be a number, got {p!r}") from None
             if not (math.isfinite(f) and f >= 0.0):
                 raise SensorConfigError(f"pct[{c!r}] must be a finite percentage >= 0, got {p!r}")
-            stds[c] = f / 100.0 * CHANNEL_RANGES[c]
+            stds[c] = f / 100.0 * ranges[c]
         stds["vx"] = vx_std
         return cls(
             noise_std=stds,

@@ -97,9 +97,10 @@ def _slalom(v, duration_s: float, n_cones: int):
 @pytest.mark.parametrize("name", [
     "reference-scooter", "sharp1971", "cossalter-sport-touring",
     pytest.param("robot-bicycle", marks=pytest.mark.xfail(strict=True, reason=(
-        "measured: 14-33 % mean error after the drop on seeds 0-2 (the motorcycles: 1.5-3.4 %; scripts/eval_vehicle_estimation.py); and below 4 % "
-        "noise its Kalman poles (200 rad/s at 5 %, 223 at 4 %) leave the 100 Hz pole disk (0.8 pi/dt = 251 rad/s): "
-        "no design"))),
+        "measured: 21-31 % mean error after the drop on seeds 0-2 (the motorcycles: 1.5-3.4 %; "
+        "scripts/eval_vehicle_estimation.py), and 27-44 % at 1-2 % noise: not the noise; unexplained (the 0.3 g "
+        "slalom steers about 0.3 rad at 3.75 m/s, beyond small angles, or the stiffness hardly shows at that "
+        "speed)"))),
 ])
 def test_estimate_recovers_a_friction_drop_on_each_preset(name):
     """The adaptive observer (Kalman vertex gains, one scale per axle) designed for the vehicle

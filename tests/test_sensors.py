@@ -367,3 +367,53 @@ def test_delay_applies_to_the_ay_frame_reading_and_reset_clears_history():
     np.testing.assert_allclose(y[3:, 4], body[:-3], rtol=1e-13, atol=1e-13)
     y2 = run(model, xs[::-1], 12.0, ay[::-1])  # reset: no memory of the previous run
     np.testing.assert_allclose(y2[:4, 4], body[-1], rtol=1e-13)
+
+
+# ------------------------------------------------------------------ channel ranges per vehicle
+def test_channel_ranges_of_the_reference_are_the_table_and_scale_with_the_vehicle():
+    """channel_ranges: the reference scooter's are CHANNEL_RANGES exactly (so every scooter result is
+    unchanged); another vehicle's follow the steady-turn kinematics the docstring derives, checked here
+    against the linear model's own steady turn: r / a_y = 1 / v and phi / a_y = 1 / g (within 4 %)."""
+    import numpy as np
+
+    from ptw_env.sensors import CHANNEL_RANGES, SensorConfig, channel_ranges
+    from ptw_env.vehicle import FYF, FYR, PHI, R, REFERENCE_SCOOTER, G
+    from ptw_env.vehicle_files import load_vehicle, vehicle_names
+
+    assert channel_ranges(REFERENCE_SCOOTER) == dict(CHANNEL_RANGES) == dict(channel_ranges(None))
+    assert SensorConfig.from_percent(5.0, vehicle=REFERENCE_SCOOTER).noise_std == SensorConfig.from_percent(5.0).noise_std
+    v0 = 0.5 * sum(REFERENCE_SCOOTER.control_range)
+    for name in vehicle_names():
+        v = load_vehicle(name)
+        vm = 0.5 * sum(v.control_range)
+        x = np.linalg.lstsq(v.A(vm), -v.B, rcond=None)[0]  # steady turn under a constant torque
+        ay = (x[FYF] + x[FYR]) / v.mass
+        assert x[R] / ay == pytest.approx(1.0 / vm, rel=1e-6)
+        assert x[PHI] / ay == pytest.approx(1.0 / G, rel=0.04)
+        r = channel_ranges(v)
+        assert r["yaw_rate"] == pytest.approx(CHANNEL_RANGES["yaw_rate"] * v0 / vm)
+        assert (r["ay"], r["roll"], r["roll_rate"]) == (CHANNEL_RANGES["ay"], CHANNEL_RANGES["roll"],
+                                                        CHANNEL_RANGES["roll_rate"])
+        cfg = SensorConfig.from_percent(5.0, vehicle=v)
+        for c in ("delta", "delta_rate", "yaw_rate", "roll_rate", "ay"):
+            assert cfg.noise_std[c] == pytest.approx(0.05 * r[c])
+
+
+def test_the_robot_bicycles_ranges_are_of_the_order_of_its_measured_rides():
+    """The 14 measured robot-bicycle rides (shared/data/robot_bicycle): the largest |signal| of each channel
+    over all runs lies within the derived range and above a quarter of it (those rides are gentle: a_y up to
+    3.5 m/s^2), as the scooter's table lies just above its urban ride."""
+    import numpy as np
+
+    from ptw_env.logs import read_log
+    from ptw_env.sensors import channel_ranges
+    from ptw_env.vehicle_files import load_vehicle
+
+    from conftest import SHARED
+
+    runs = sorted((SHARED / "data" / "robot_bicycle").glob("rb_*.csv"))
+    assert len(runs) == 14
+    r = channel_ranges(load_vehicle("robot-bicycle"))
+    for c in ("delta", "delta_rate", "yaw_rate", "roll_rate", "ay"):
+        peak = max(float(np.nanmax(np.abs(read_log(f).columns[c]))) for f in runs)
+        assert 0.25 * r[c] <= peak <= r[c], (c, peak, r[c])

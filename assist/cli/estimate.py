@@ -178,7 +178,7 @@ def _build(p: argparse.ArgumentParser):
             raise CLIError("--road-bank applies to --method adaptive only")
         obs = AdaptiveObserver(design, law=a.law, tau_a=10.0 if a.tau_a is None else a.tau_a,
                                parametrisation=a.parametrisation, road_bank=a.road_bank)
-        sensors = SensorConfig.from_percent(pct) if pct is not None else SensorConfig()
+        sensors = SensorConfig.from_percent(pct, vehicle=vehicle) if pct is not None else SensorConfig()
         method = "ukf" if a.method == "ekf" else a.method
         try:
             res = estimate(log, method, sensors=sensors, observer=obs, model=model)

@@ -218,9 +218,10 @@ class AdaptiveDesignOptions:
         """Pole-disk radius [rad/s]."""
         return float(self.radius) if self.radius is not None else 0.8 * math.pi / self.dt
 
-    def noise_std(self) -> np.ndarray:
-        """Per-sample noise std of the five outputs (delta with quantisation), physical units."""
-        cfg = SensorConfig.from_percent(max(self.noise_pct, 0.1))
+    def noise_std(self, vehicle: Vehicle | None = None) -> np.ndarray:
+        """Per-sample noise std of the five outputs (delta with quantisation), physical units, in percent of
+        ``vehicle``'s channel ranges (:func:`ptw_env.sensors.channel_ranges`; default the reference scooter's)."""
+        cfg = SensorConfig.from_percent(max(self.noise_pct, 0.1), vehicle=vehicle)
         s = np.array([cfg.noise_std[c] for c in OUTPUT_NAMES])
         s[0] = math.sqrt(s[0] ** 2 + ENCODER_QUANTUM**2 / 12.0)
         return s
@@ -244,8 +245,9 @@ class _Scaled:
 
 def _scaled(model: LPVModel, o: AdaptiveDesignOptions) -> _Scaled:
     sx = STATE_SCALE
-    sy = o.noise_std() * math.sqrt(o.dt)  # white noise of per-sample std s at rate 1/dt has intensity s^2 dt
-    sya = np.r_[o.noise_std(), _YA_SCALE]
+    ns = o.noise_std(model.vehicle)
+    sy = ns * math.sqrt(o.dt)  # white noise of per-sample std s at rate 1/dt has intensity s^2 dt
+    sya = np.r_[ns, _YA_SCALE]
     A = np.stack([a / sx[:, None] * sx[None, :] for a in model.vertices])
     C = model.C * sx[None, :] / sy[:, None]
     Ca = model.C_aug() * sx[None, :] / sya[:, None]
@@ -620,7 +622,7 @@ def kalman_design(model: LPVModel | None = None, options: AdaptiveDesignOptions 
     model = model_for(o, model)
     t0 = time.perf_counter()
     Bw = np.diag(np.asarray(o.process_std))
-    V = np.diag(o.noise_std() ** 2 * o.dt)
+    V = np.diag(o.noise_std(model.vehicle) ** 2 * o.dt)
     L = []
     for v in (model.vmin, model.vmax):
         try:

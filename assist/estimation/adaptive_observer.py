@@ -797,7 +797,7 @@ def effective_noise(design: AdaptiveObserverDesign, vx: float | None = None) -> 
     """
     m, o = design.model, design.options
     v = 0.5 * (m.vmin + m.vmax) if vx is None else float(vx)
-    sig2 = o.noise_std() ** 2
+    sig2 = o.noise_std(m.vehicle) ** 2
     L = design.gain(v)
     Acl = m.A(v) - L @ m.C
     Bw = np.diag(np.asarray(o.process_std))

@@ -541,7 +541,8 @@ class JointEKF:
     def __init__(self, sensors: SensorConfig | None = None, process_std=DEFAULT_PROCESS_STD,
                  stiffness_walk: float = 0.005, stiffness_std0: float = 0.5, band=DEFAULT_BAND,
                  model: LPVModel | None = None) -> None:
-        self.sensors = SensorConfig.from_percent(5) if sensors is None else sensors
+        self.model = build_lpv_model() if model is None else model
+        self.sensors = SensorConfig.from_percent(5, vehicle=self.model.vehicle) if sensors is None else sensors
         if not isinstance(self.sensors, SensorConfig):
             raise IdentificationError(f"sensors must be a SensorConfig, got {type(sensors).__name__}")
         q = np.asarray(process_std, dtype=float)
@@ -555,7 +556,6 @@ class JointEKF:
             raise IdentificationError(f"band must be (lo, hi) with 0 < lo < 1 < hi, got {band!r}")
         self.process_std, self.stiffness_walk, self.stiffness_std0 = q, float(stiffness_walk), float(stiffness_std0)
         self.band = (lo, hi)
-        self.model = build_lpv_model() if model is None else model
 
     def fit(self, log) -> "JointEKF":
         m = self.model
@@ -689,7 +689,7 @@ def simulate_friction_drop(scenario: str = "urban", switch_s: float = 20.0, befo
         raise IdentificationError(f"switch_s = {switch_s} s must lie inside the ride (0, {prof.t[-1]:.1f}) s")
     plants = [compile_plant(v, {"tire_stiffness": {"front_scale": b, "rear_scale": b}}) for b in (before, after)]
     steppers = [Stepper(p, dt) for p in plants]
-    cfg = SensorConfig.from_percent(noise_pct) if noise_pct is not None else SensorConfig()
+    cfg = SensorConfig.from_percent(noise_pct, vehicle=v) if noise_pct is not None else SensorConfig()
     sens = SensorModel(cfg, None, dt=dt)
     root = np.random.SeedSequence(seed)
     s1, s2, s3 = root.spawn(3)

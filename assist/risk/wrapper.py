@@ -135,7 +135,7 @@ def _noise_pct_of(env) -> float | None:
         return None
     from ptw_env.sensors import SensorConfig
 
-    return float(cfg.noise_std["ay"] / SensorConfig.from_percent(1.0).noise_std["ay"])
+    return float(cfg.noise_std["ay"] / SensorConfig.from_percent(1.0, vehicle=getattr(env, "vehicle", None)).noise_std["ay"])
 
 
 __all__ = ["RiskWarningWrapper"]

@@ -13,7 +13,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ptw_env.env import OBS_NAMES, PTWRollEnv
-from ptw_env.sensors import CHANNEL_RANGES
+from ptw_env.sensors import CHANNEL_RANGES, channel_ranges
 from ptw_env.vehicle import REFERENCE_SCOOTER
 
 #: Algorithms of ``ptw-assist train-rl --algo``.
@@ -59,8 +59,7 @@ OBS_CHANNELS = OBS_NAMES[:7]  # the default observation (no roll channel)
 _MIRROR = np.array([-1, -1, -1, -1, -1, 1, -1], dtype=np.float32)
 
 
-def _default_scales() -> tuple[float, ...]:
-    r = CHANNEL_RANGES
+def _default_scales(r: Mapping[str, float] = CHANNEL_RANGES) -> tuple[float, ...]:
     # vx: centred at 15 m/s, scale 10 m/s (applied in ObsEncoder); phi_ref like the roll channel
     return (r["delta"], r["delta_rate"], r["yaw_rate"], r["roll_rate"], r["ay"], 10.0, r["roll"])
 
@@ -117,12 +116,13 @@ class ObsEncoder:
                 "scale": list(self.scale), "center": list(self.center), "clip": self.clip}
 
     @classmethod
-    def for_speeds(cls, vmin: float, vmax: float, **kwargs: Any) -> "ObsEncoder":
+    def for_speeds(cls, vmin: float, vmax: float, vehicle: Any = None, **kwargs: Any) -> "ObsEncoder":
         """The encoder whose ``vx`` feature spans ``[vmin, vmax]`` [m/s] as ``[-1, 1]`` (centre the middle, scale
-        half the width), the other channels as the default; for training on a vehicle's speed range."""
+        half the width) and whose other channels are scaled by ``vehicle``'s channel ranges
+        (:func:`ptw_env.sensors.channel_ranges`); for training on a vehicle's speed range."""
         if not (0 < vmin < vmax and math.isfinite(vmax)):
             raise PolicyError(f"ObsEncoder.for_speeds needs 0 < vmin < vmax [m/s], got {vmin!r}, {vmax!r}")
-        base = cls(**kwargs)
+        base = cls(**{"scale": _default_scales(channel_ranges(vehicle)), **kwargs})
         scale, center = list(base.scale), list(base.center)
         i = OBS_CHANNELS.index("vx")
         center[i], scale[i] = 0.5 * (vmin + vmax), 0.5 * (vmax - vmin)

@@ -157,7 +157,7 @@ class TrainingEnv(gym.Env):
             raise PolicyError(f"vehicle must be a Vehicle (ptw_env.load_vehicle), got {type(vehicle).__name__}")
         self.distribution = (distribution or TrainingDistribution()).for_vehicle(self.vehicle)
         lo, hi = self.distribution.speed_kmh
-        self.encoder = ObsEncoder.from_config(encoder) if encoder else ObsEncoder.for_speeds(lo / 3.6, hi / 3.6)
+        self.encoder = ObsEncoder.from_config(encoder) if encoder else ObsEncoder.for_speeds(lo / 3.6, hi / 3.6, self.vehicle)
         self.fixed = dict(fixed) if fixed else None
         self.tau_max = float(DEFAULT_TAU_MAX * self.vehicle.torque_ratio if tau_max is None else tau_max)
         c = self.encoder.clip
