@@ -3,7 +3,7 @@
 Physics asserted: a TS design for another preset is certified over that vehicle's own design range and its
 closed loop holds the controller issue's target (roll RMSE under 1 deg on the lane change at 5 % noise);
 the runtime feeds its observer the torque the plant receives (clipped), without which the same design winds up
-and diverges on sharp1971 (measured: torque -1.6e9 N m after 3.3 s).
+and diverges on sharp1971 (measured: torque 1.2e9 N m at 1.44 s, 2026-11-25).
 """
 
 from __future__ import annotations
