@@ -104,7 +104,7 @@ CHANNEL_RANGES: Mapping[str, float] = MappingProxyType(
 )
 
 def channel_ranges(vehicle: Any = None) -> Mapping[str, float]:
-    """The "100 %" of percent-of-range noise for ``vehicle`` (default: the reference scooter, :data:`CHANNEL_RANGES`).
+    r"""The "100 %" of percent-of-range noise for ``vehicle`` (default: the reference scooter, :data:`CHANNEL_RANGES`).
 
     :data:`CHANNEL_RANGES` is the amplitude of the reference scooter's signals in an everyday ride. Another
     vehicle ridden at the same lateral acceleration ``a_y`` (the envelope is the road's friction, not the

@@ -22,6 +22,7 @@ from assist.control.ts_controller import (
 from assist.control.ts_design import design
 from assist.control.ts_model import MEASURED_STATES
 from ptw_env.dynamics import compile_plant
+from ptw_env.sensors import SensorConfig
 from ptw_env.vehicle import DELTA, PHI, VY
 
 DT = 0.01
@@ -30,13 +31,6 @@ DT = 0.01
 @pytest.fixture(scope="module")
 def dz():
     return design()
-
-
-def _noise_std(pct: float) -> np.ndarray:
-    """pct % of each channel's range (ptw_env.sensors.CHANNEL_RANGES), in the order of y."""
-    from ptw_env.sensors import CHANNEL_RANGES
-
-    return pct / 100.0 * np.array([CHANNEL_RANGES[c] for c in ("yaw_rate", "roll_rate", "delta", "delta_rate")])
 
 
 def lane_change_roll(t: np.ndarray, amp_deg: float = 12.0, starts=(2.0, 6.0), period: float = 2.5) -> np.ndarray:
@@ -212,8 +206,7 @@ def test_roll_tracking_at_5_percent_noise(dz, v0, v1, seed):
     t = np.arange(1201) * DT
     vx = speed_ramp(t, v0, v1)
     ref = lane_change_roll(t)
-    run = run_closed_loop(TSObserverController(dz), vx, ref, noise_std=_noise_std(5), seed=seed,
-                          vx_noise_std=0.05)
+    run = run_closed_loop(TSObserverController(dz), vx, ref, sensors=SensorConfig.from_percent(5.0), seed=seed)
     assert not run.fell
     assert run.roll_rmse_deg() < 1.0
     err = run.x - run.x_hat
@@ -246,9 +239,9 @@ def test_feedforward_is_what_makes_the_roll_follow_the_reference(dz):
 def test_same_seed_same_run(dz):
     t = np.arange(301) * DT
     a = run_closed_loop(TSObserverController(dz), np.full(301, 15.0), lane_change_roll(t, starts=(0.5, 1.5)),
-                        noise_std=_noise_std(5), seed=42)
+                        sensors=SensorConfig.from_percent(5.0), seed=42)
     b = run_closed_loop(TSObserverController(dz), np.full(301, 15.0), lane_change_roll(t, starts=(0.5, 1.5)),
-                        noise_std=_noise_std(5), seed=42)
+                        sensors=SensorConfig.from_percent(5.0), seed=42)
     np.testing.assert_array_equal(a.tau, b.tau)
 
 

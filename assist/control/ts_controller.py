@@ -70,6 +70,7 @@ import numpy as np
 from numba import njit
 
 from ptw_env.env import obs_index
+from ptw_env.sensors import SensorConfig
 
 from assist.control.ts_discrete import (  # noqa: F401  (re-exported: the runtime's discretisation, assist.control.ts_discrete)
     NV,
@@ -664,50 +665,52 @@ def run_closed_loop(
     controller: TSObserverController,
     vx: np.ndarray,
     phi_ref: np.ndarray,
-    noise_std: np.ndarray | float = 0.0,
+    sensors: SensorConfig | None = None,
     seed: int | np.random.Generator | None = 0,
     x0: np.ndarray | None = None,
     plant=None,
-    vx_noise_std: float = 0.0,
 ) -> ClosedLoopRun:
-    """Run the controller against the nonlinear plant in a plain loop (no Gymnasium).
+    """Run the controller against the nonlinear plant along a prescribed speed and roll reference.
 
-    The true plant is :class:`ptw_env.integrate.Stepper` of
-    ``ptw_env.dynamics.compile_plant()`` (or ``plant``), stepped with the
-    returned torque held over each period; the measurements are the true
-    ``[r, phi_dot, delta, delta_dot]`` plus seeded Gaussian noise of standard
-    deviation ``noise_std`` (per channel, same units). ``vx[k]`` [m/s] and
-    ``phi_ref[k]`` [rad] are the speed and reference at ``t_k``; the premise
-    uses ``vx[k]`` plus Gaussian noise of ``vx_noise_std``.
+    The harness for what a scenario cannot prescribe (any ``vx[k]`` [m/s] and ``phi_ref[k]`` [rad] at
+    ``t_k``); everything else is the environment's: the true plant is :class:`ptw_env.integrate.Stepper` of
+    ``ptw_env.dynamics.compile_plant()`` (or ``plant``), stepped with the returned torque held over each
+    period; the measurements come from :class:`ptw_env.sensors.SensorModel` with ``sensors`` (default
+    noiseless, speed every sample; seeded from ``seed``), the controller reading ``[r, phi_dot, delta,
+    delta_dot]`` and the measured (GPS) speed as in :meth:`TSObserverController.act`; the ride ends at the
+    environment's fall angle (:data:`ptw_env.env.FALL_ANGLE`).
     """
     from ptw_env.dynamics import compile_plant
+    from ptw_env.env import FALL_ANGLE
     from ptw_env.integrate import Stepper
-
-    from assist.control.ts_model import MEASURED_STATES
+    from ptw_env.sensors import CHANNELS, SensorModel
 
     vx = np.asarray(vx, dtype=float)
     phi_ref = np.asarray(phi_ref, dtype=float)
     if vx.ndim != 1 or phi_ref.shape != vx.shape:
         raise ValueError(f"vx and phi_ref must be 1-D of equal length, got shapes {vx.shape}, {phi_ref.shape}")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    std = np.broadcast_to(np.asarray(noise_std, dtype=float), (4,))
-    stepper = Stepper(compile_plant() if plant is None else plant, controller.dt)
+    plant = compile_plant() if plant is None else plant
+    stepper = Stepper(plant, controller.dt)
+    sensor = SensorModel(SensorConfig.noiseless() if sensors is None else sensors, None, dt=controller.dt)
+    sensor.reset(rng)
+    meas = [CHANNELS.index(c) for c in ("yaw_rate", "roll_rate", "delta", "delta_rate")]
+    i_vx = CHANNELS.index("vx")
     n = vx.size
     xs = np.zeros((n, 8))
     xh = np.zeros((n, 8))
     ys = np.zeros((n, 4))
     taus = np.zeros(n)
     x = np.zeros(8) if x0 is None else np.array(x0, dtype=float)
-    idx = list(MEASURED_STATES)
     controller.reset()
     fell = False
     for k in range(n):
         xs[k] = x
-        y = x[idx] + std * rng.standard_normal(4)
-        v_meas = vx[k] + vx_noise_std * rng.standard_normal()
-        tau = controller.update(y, v_meas, phi_ref[k])
+        row = sensor.measure(x, vx[k], float(plant.ay(x)))
+        y = row[meas]
+        tau = controller.update(y, float(row[i_vx]), phi_ref[k])
         ys[k], taus[k], xh[k] = y, tau, controller.x_hat
-        if abs(x[PHI]) > math.pi / 4:
+        if abs(x[PHI]) > FALL_ANGLE:
             fell = True
             xs, xh, ys, taus, vx, phi_ref = xs[: k + 1], xh[: k + 1], ys[: k + 1], taus[: k + 1], vx[: k + 1], phi_ref[: k + 1]
             break
