@@ -7,7 +7,9 @@ and the adaptive observer's Theorem 2, :mod:`assist.estimation.adaptive_design`)
 * :func:`solve_quietly`: ``prob.solve`` with the solver's warnings silenced and its failures turned into a
   status string instead of an exception (``"solver_error: ..."`` for cvxpy's SolverError, ``"solver_crash:
   ..."`` for a panic of the compiled solver, e.g. Clarabel's pyo3 PanicException, which derives from
-  BaseException).
+  BaseException);
+* :class:`Certificate` of :class:`CertificateEntry`: the numpy re-check of every inequality of a design
+  (both designs report through it).
 
 May import: numpy, cvxpy (lazily). Imported by the control and estimation families.
 """
@@ -15,6 +17,7 @@ May import: numpy, cvxpy (lazily). Imported by the control and estimation famili
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -60,4 +63,44 @@ def solve_quietly(prob: Any, solver: str) -> str:
     return str(prob.status)
 
 
-__all__ = ["max_eig", "solve_quietly", "symmetric"]
+#: Tolerance of a non-strict inequality ``block <= 0`` (relative to the block's size where the design says so).
+NONSTRICT_TOL = 1e-7
+
+
+@dataclass(frozen=True)
+class CertificateEntry:
+    """Largest eigenvalue ``max_eig`` of one inequality ``block < 0`` (``block <= 0`` when not ``strict``),
+    checked in numpy: ``lmi`` names it, ``vertex`` is the polytope vertex (None: a vertex-free condition such as
+    ``P > 0``), ``theorem`` the theorem it belongs to when a design proves several (None otherwise)."""
+
+    lmi: str
+    vertex: int | None
+    max_eig: float
+    strict: bool = True
+    theorem: str | None = None
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """The numpy re-check of every inequality of a design: a strict one holds when ``max_eig < -margin``, a
+    non-strict one when ``max_eig <= NONSTRICT_TOL``."""
+
+    margin: float
+    entries: tuple[CertificateEntry, ...]
+
+    def failures(self) -> list[CertificateEntry]:
+        """Entries that violate their inequality."""
+        return [e for e in self.entries if (e.max_eig >= -self.margin if e.strict else e.max_eig > NONSTRICT_TOL)]
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures()
+
+    def worst(self, theorem: str | None = None, lmis: tuple[str, ...] | None = None) -> CertificateEntry:
+        """The strict entry closest to violation, optionally of one ``theorem`` and of the LMI names ``lmis``."""
+        es = [e for e in self.entries if e.strict and (theorem is None or e.theorem == theorem)
+              and (lmis is None or e.lmi in lmis)]
+        return max(es, key=lambda e: e.max_eig)
+
+
+__all__ = ["Certificate", "CertificateEntry", "NONSTRICT_TOL", "max_eig", "solve_quietly", "symmetric"]

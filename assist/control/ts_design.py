@@ -194,7 +194,7 @@ import numpy as np
 from ptw_env.vehicle import PHI, REFERENCE_SCOOTER, STATE_NAMES, VY, Vehicle
 
 from assist.control.ts_discrete import DiscreteTS, discretise, sampled_closed_loop
-from assist.lmi import max_eig, solve_quietly, symmetric
+from assist.lmi import Certificate, CertificateEntry, max_eig, solve_quietly, symmetric
 from assist.control.ts_model import (
     AUGMENTED_NAMES,
     MEASUREMENT_NAMES,
@@ -645,46 +645,11 @@ def _diagnose(theorem: str, d: _Data, o: TheoremOptions, radius: float, margin: 
 
 
 # --------------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class CertificateEntry:
-    """Largest eigenvalue of one inequality ``block < 0``, checked in numpy.
-
-    All are strict (``max_eig < -margin``: the LMIs theorem, decay, disk of
-    every vertex, and ``-P < 0``, ``-Pq < 0``, ``-eps < 0``) except the gain
-    bound, whose ``max_eig`` is the violation relative to the block's size and
-    must be ``<= 1e-7``. (``I <= P <= cond_max I`` only normalises the
-    problem; the condition number is checked separately.)
-    """
-
-    theorem: str
-    lmi: str
-    vertex: int | None
-    max_eig: float
-
-    @property
-    def strict(self) -> bool:
-        return self.lmi != GAIN
-
-
-@dataclass(frozen=True)
-class Certificate:
-    """The numpy re-check of every inequality of both theorems."""
-
-    margin: float
-    entries: tuple[CertificateEntry, ...]
-
-    @property
-    def passed(self) -> bool:
-        return not self.failures()
-
-    def worst(self, theorem: str | None = None) -> CertificateEntry:
-        """The LMI entry closest to violation (optionally for one theorem)."""
-        es = [e for e in self.entries if e.lmi in FAMILIES and (theorem is None or e.theorem == theorem)]
-        return max(es, key=lambda e: e.max_eig)
-
-    def failures(self) -> list[CertificateEntry]:
-        """Entries that violate their inequality."""
-        return [e for e in self.entries if (e.max_eig >= -self.margin if e.strict else e.max_eig > 1e-7)]
+# Certificate and CertificateEntry: assist.lmi (shared with the adaptive observer's design). Here every
+# inequality is strict (``max_eig < -margin``: the LMIs theorem, decay, disk of every vertex, and ``-P < 0``,
+# ``-Pq < 0``, ``-eps < 0``) except the gain bound, whose ``max_eig`` is the violation relative to the block's
+# size and must be ``<= NONSTRICT_TOL``. (``I <= P <= cond_max I`` only normalises the problem; the condition
+# number is checked separately.) ``worst`` is taken over the LMI families (FAMILIES).
 
 
 @dataclass(frozen=True, eq=False)
@@ -854,11 +819,11 @@ def certify(ts: TSModel, aug: AugmentedModel, obs: ObserverDesign, ctl: Controll
                 top = max_eig(blk)
                 if name == GAIN:  # non-strict: relative violation
                     top /= max(1.0, float(np.linalg.norm(blk, 2)))
-                out.append(CertificateEntry(theorem, name, i, top))
-        out.append(CertificateEntry(theorem, "P > 0", None, float(-np.linalg.eigvalsh(P)[0])))
+                out.append(CertificateEntry(name, i, top, strict=name != GAIN, theorem=theorem))
+        out.append(CertificateEntry("P > 0", None, float(-np.linalg.eigvalsh(P)[0]), theorem=theorem))
         if Pq is not None:
-            out.append(CertificateEntry(theorem, "Pq > 0", None, float(-np.linalg.eigvalsh(Pq)[0])))
-        out.append(CertificateEntry(theorem, "eps > 0", None, float(-np.min(eps))))
+            out.append(CertificateEntry("Pq > 0", None, float(-np.linalg.eigvalsh(Pq)[0]), theorem=theorem))
+        out.append(CertificateEntry("eps > 0", None, float(-np.min(eps)), theorem=theorem))
     return Certificate(margin=options.margin, entries=tuple(out))
 
 
@@ -1187,8 +1152,8 @@ def _summary(dz: TSDesign) -> dict[str, Any]:
                 "controller": {k: float(v) for k, v in c.iss.items()},
                 "units": "scaled coordinates (see scaling), except the entries ending in _rad, _mps: physical"},
         "margins": {
-            "observer_lmi": -cert.worst(OBSERVER).max_eig,
-            "controller_lmi": -cert.worst(CONTROLLER).max_eig,
+            "observer_lmi": -cert.worst(OBSERVER, FAMILIES).max_eig,
+            "controller_lmi": -cert.worst(CONTROLLER, FAMILIES).max_eig,
             "required_lmi": cert.margin,
             "discrete_observer_rho": float(dchk.observer_rho.max()),
             "discrete_closed_loop_rho": float(dchk.closed_loop_rho.max()),
@@ -1243,7 +1208,7 @@ def compare_solver(dz: TSDesign, solver: str = "SCS") -> dict[str, Any]:
     ctl = _controller_result(raws[CONTROLLER], data[CONTROLLER], c.sa, c.su, c.sr, dz.aug, o.sx, 0.0)
     cert = certify(dz.ts, dz.aug, obs, ctl, opts)
     for theorem, key in ((OBSERVER, "observer"), (CONTROLLER, "controller")):
-        w = cert.worst(theorem)
+        w = cert.worst(theorem, FAMILIES)
         out[key]["worst_lmi"] = {"lmi": w.lmi, "vertex": w.vertex, "max_eig": w.max_eig}
         out[key]["certified"] = not any(f.theorem == theorem for f in cert.failures())
     out["certified"] = cert.passed

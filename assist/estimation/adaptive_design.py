@@ -92,7 +92,7 @@ import numpy as np
 from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
 from ptw_env.vehicle import Vehicle
 
-from assist.lmi import max_eig, solve_quietly, symmetric
+from assist.lmi import Certificate, CertificateEntry, max_eig, solve_quietly, symmetric
 from assist.estimation.lpv_model import (
     DELTA_MAX,
     OUTPUT_NAMES,
@@ -344,34 +344,6 @@ def lipschitz_bound(model: LPVModel | None = None, options: AdaptiveDesignOption
 
 
 # --------------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class CertificateEntry:
-    """Largest eigenvalue of one inequality ``block < 0`` (``block <= 0`` when not strict), checked in numpy."""
-
-    lmi: str
-    vertex: int | None
-    max_eig: float
-    strict: bool = True
-
-
-@dataclass(frozen=True)
-class Certificate:
-    """The numpy re-check of every inequality of the design (scaled coordinates)."""
-
-    margin: float
-    entries: tuple[CertificateEntry, ...]
-
-    def failures(self) -> list[CertificateEntry]:
-        return [e for e in self.entries if (e.max_eig >= -self.margin if e.strict else e.max_eig > 1e-7)]
-
-    @property
-    def passed(self) -> bool:
-        return not self.failures()
-
-    def worst(self) -> CertificateEntry:
-        return max((e for e in self.entries if e.strict), key=lambda e: e.max_eig)
-
-
 @dataclass(frozen=True, eq=False)
 class AdaptiveObserverDesign:
     """Result of :func:`design_adaptive_observer`.
