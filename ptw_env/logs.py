@@ -676,6 +676,40 @@ def held_speed(t: np.ndarray, vx: np.ndarray) -> np.ndarray:
     return np.interp(np.asarray(t, dtype=float), tf, vf)
 
 
+def input_series(t: np.ndarray, tau: np.ndarray, vx: np.ndarray, where: str = "") -> tuple[np.ndarray, np.ndarray]:
+    """The inputs of a model replay, checked once: ``(tau, vx_held)`` [N m, m/s] from the ``tau`` and ``vx``
+    columns at times ``t`` [s].
+
+    The rider torque must be present at every sample (the model is driven by it); the speed is a
+    sample-and-hold channel (NaN where a fix is missing) that must have a reading and be positive
+    wherever present (the model divides by it), and is returned reconstructed at every sample
+    (:func:`held_speed`). A violation is one ValueError naming the first sample, its time and its line in a
+    file with one header line, and how many samples are affected (prefixed by ``where``, e.g. the file, when
+    given). The one check shared by the
+    estimators, the adaptive observer and the risk warning.
+    """
+    t = np.asarray(t, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    v = np.asarray(vx, dtype=float)
+    where = f"{where}: " if where else ""
+
+    def at(idx: np.ndarray) -> str:
+        k = int(idx[0])
+        return f"at sample {k} (t = {t[k]:.3f} s, line {k + 2} of a file with one header line), {idx.size} such sample(s)"
+
+    bad = np.flatnonzero(~np.isfinite(tau))
+    if bad.size:
+        raise ValueError(f"{where}tau is missing {at(bad)} (the rider torque must be known at every sample)")
+    ok = np.isfinite(v)
+    if not ok.any():
+        raise ValueError(f"{where}vx is missing at every sample")
+    nonpos = np.flatnonzero(ok & (v <= 0))
+    if nonpos.size:
+        raise ValueError(f"{where}vx must be positive (m/s) where present; vx = {v[int(nonpos[0])]:g} m/s "
+                         f"{at(nonpos)}")
+    return tau, held_speed(t, v)
+
+
 def check_against_vehicle(log: RideLog, vehicle: Any) -> None:
     """Refuse a log whose steer angle goes beyond the vehicle's steering lock.
 

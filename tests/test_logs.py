@@ -512,3 +512,22 @@ def test_observation_channels_by_name_match_the_environment():
     assert len(OBS_NAMES) == env.observation_space.shape[0]
     with pytest.raises(ValueError, match="unknown observation channel"):
         obs_index("speed")
+
+
+def test_input_series_is_the_one_check_of_torque_and_speed():
+    """ptw_env.logs.input_series: the held speed reconstructed (a dropout bridged), and one message per fault
+    naming the first sample, its time, its file line and the count; used by the estimators, the adaptive
+    observer and the risk warning (their messages are this one)."""
+    import numpy as np
+
+    from ptw_env.logs import input_series
+
+    t = np.arange(6) * 0.01
+    tau, v = input_series(t, np.zeros(6), [10.0, 10.0, np.nan, 12.0, 12.0, 12.0])
+    np.testing.assert_allclose(v, [10.0, 10.0, 11.0, 12.0, 12.0, 12.0])
+    with pytest.raises(ValueError, match=r"^f.csv: tau is missing at sample 2 \(t = 0.020 s, line 4 of a file"):
+        input_series(t, [0, 0, np.nan, 0, np.nan, 0], np.full(6, 10.0), "f.csv")
+    with pytest.raises(ValueError, match=r"vx = -1 m/s at sample 4 \(t = 0.040 s, line 6 .*\), 1 such sample"):
+        input_series(t, np.zeros(6), [10, 10, 10, 10, -1, 10])
+    with pytest.raises(ValueError, match="vx is missing at every sample"):
+        input_series(t, np.zeros(6), np.full(6, np.nan))

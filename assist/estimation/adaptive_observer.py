@@ -124,7 +124,7 @@ from numba import njit
 from ptw_env.dynamics import compile_plant
 from ptw_env.integrate import substeps_for
 from ptw_env.kernels import deriv, fold_vx
-from ptw_env.logs import held_speed
+from ptw_env.logs import held_speed, input_series
 from ptw_env.vehicle import PHI_DOT, R, DELTA_DOT
 
 from assist.estimation.adaptive_design import AdaptiveObserverDesign, default_design
@@ -749,16 +749,16 @@ class AdaptiveObserver:
         if Y.shape != (K, NY) or tau.shape != (K,) or np.shape(vx) != (K,):
             raise ObserverInputError(f"shapes must be t (K,), y (K, {NY}), tau (K,), vx (K,); got "
                                      f"{t.shape}, {Y.shape}, {tau.shape}, {np.shape(vx)}")
-        if not np.all(np.isfinite(tau)):
-            raise ObserverInputError(f"tau has a missing value at sample {int(np.flatnonzero(~np.isfinite(tau))[0])}")
-        v = np.asarray(vx, dtype=float)
-        v = gps_interpolate(t, v) if interpolate_speed else v
-        bad_v = np.flatnonzero(~(v > 0) | ~np.isfinite(v))
-        if bad_v.size:
-            k = int(bad_v[0])
-            raise ObserverInputError(f"vx must be positive and finite at every sample: vx = {v[k]:g} m/s at sample {k} "
-                                     f"(t = {t[k]:g} s), {bad_v.size} such sample(s)"
-                                     + ("" if interpolate_speed else " (or interpolate_speed=True)"))
+        try:  # ptw_env.logs: the one check of the inputs (torque at every sample, a positive held speed)
+            tau, v_held = input_series(t, tau, vx)
+        except ValueError as exc:
+            raise ObserverInputError(str(exc)) from None
+        v = v_held if interpolate_speed else np.asarray(vx, dtype=float)
+        if not np.all(np.isfinite(v)):
+            k = int(np.flatnonzero(~np.isfinite(v))[0])
+            raise ObserverInputError(f"vx is missing at sample {k} (t = {t[k]:g} s): a held speed needs "
+                                     f"interpolate_speed=True")
+        tau = np.ascontiguousarray(tau)
         X = np.zeros((K, 8))
         TH = np.zeros((K, 4))
         E6 = np.zeros((K, 6))

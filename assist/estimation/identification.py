@@ -113,11 +113,12 @@ from scipy.signal import butter, lfilter
 from ptw_env.dynamics import compile_plant
 from ptw_env.integrate import substeps_for
 from ptw_env.kernels import deriv, fold_vx
+from ptw_env.logs import input_series
 from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
 from ptw_env.vehicle import FYF, FYR, R, VY, Vehicle
 
 from assist.estimation.adaptive_design import DEFAULT_PROCESS_STD, default_design
-from assist.estimation.adaptive_observer import DEFAULT_BAND, AdaptiveObserver, gps_interpolate
+from assist.estimation.adaptive_observer import DEFAULT_BAND, AdaptiveObserver
 from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, THETA_NAMES, LPVModel, build_lpv_model, chi_entry
 
 #: Methods of :func:`estimate` (cli.md ``--method``; ``ekf`` is an alias of ``ukf``).
@@ -282,12 +283,10 @@ def _log_arrays(log) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, fl
     c = log.columns
     t = np.asarray(log.t, dtype=float)
     Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUT_NAMES])
-    tau = np.asarray(c["tau"], dtype=float)
-    if not np.all(np.isfinite(tau)):
-        raise IdentificationError(f"tau has a missing value at sample {int(np.flatnonzero(~np.isfinite(tau))[0])}")
-    vx = gps_interpolate(t, c["vx"])
-    if np.any(vx <= 0):
-        raise IdentificationError("vx must be positive (the model divides by the speed)")
+    try:  # ptw_env.logs: the one check of the inputs (torque at every sample, a positive held speed)
+        tau, vx = input_series(t, c["tau"], c["vx"], str(getattr(log, "path", None) or "log"))
+    except ValueError as exc:
+        raise IdentificationError(str(exc)) from None
     dt = float(np.median(np.diff(t)))
     return t, Y, tau, vx, dt
 

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ptw_env.logs import held_speed, sidecar_noise_pct
+from ptw_env.logs import input_series, sidecar_noise_pct
 from ptw_env.vehicle import Vehicle
 from ptw_env.vehicle_files import vehicle_of_log
 
@@ -154,22 +154,11 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
         pipeline = RiskPipeline(default_estimator(pct, dt, v, np.asarray(c["vx"], dtype=float)), vehicle=v)
     pipeline.reset()
     Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
-    tau = np.asarray(c["tau"], dtype=float)
     vx = np.asarray(c["vx"], dtype=float)
-    bad = np.flatnonzero(~np.isfinite(tau))
-    if bad.size:
-        raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: tau is missing at t = {t[bad[0]]:.3f} s "
-                           "(the rider torque must be known at every sample)")
-    ok = np.isfinite(vx)
-    if not ok.any():
-        raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: vx is missing at every sample")
-    nonpos = np.flatnonzero(ok & (vx <= 0))
-    if nonpos.size:
-        k = int(nonpos[0])
-        raise RiskLogError(f"{getattr(log, 'path', None) or 'log'}: vx must be positive (m/s) where present; "
-                           f"vx = {vx[k]:g} m/s at sample {k} (t = {t[k]:.3f} s, line {k + 2} of a file with one "
-                           f"header line), {nonpos.size} such sample(s)")
-    vfill = held_speed(t, vx)  # ptw_env.logs: the one reconstruction of the held speed
+    try:  # ptw_env.logs: the one check of the inputs and the one reconstruction of the held speed
+        tau, vfill = input_series(t, c["tau"], vx, str(getattr(log, "path", None) or "log"))
+    except ValueError as exc:
+        raise RiskLogError(str(exc)) from None
     kmap = None
     if use_kappa and "kappa" in c:
         kap = np.asarray(c["kappa"], dtype=float)
