@@ -523,8 +523,8 @@ def test_input_series_is_the_one_check_of_torque_and_speed():
     from ptw_env.logs import input_series
 
     t = np.arange(6) * 0.01
-    tau, v = input_series(t, np.zeros(6), [10.0, 10.0, np.nan, 12.0, 12.0, 12.0])
-    np.testing.assert_allclose(v, [10.0, 10.0, 11.0, 12.0, 12.0, 12.0])
+    tau, v = input_series(t, np.zeros(6), [10.0, np.nan, 12.0, 12.0, 12.0, 12.0])  # fixes at t0 and t2
+    np.testing.assert_allclose(v, [10.0, 11.0, 12.0, 12.0, 12.0, 12.0])
     with pytest.raises(ValueError, match=r"^f.csv: tau is missing at sample 2 \(t = 0.020 s, line 4 of a file"):
         input_series(t, [0, 0, np.nan, 0, np.nan, 0], np.full(6, 10.0), "f.csv")
     with pytest.raises(ValueError, match=r"vx = -1 m/s at sample 4 \(t = 0.040 s, line 6 .*\), 1 such sample"):
