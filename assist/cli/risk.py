@@ -67,7 +67,7 @@ def _build(p: argparse.ArgumentParser):
         if pipe.bank_estimate is not None:
             pipe.bank_estimate.record = True  # the estimates, for the report
         res = assess_log(log, pipe, use_kappa=not a.no_map)
-        banks = [] if pipe.bank_estimate is None else pipe.bank_estimate.history
+        banks = None if pipe.bank_estimate is None else pipe.bank_estimate.summary()
         js = res.to_json()
         js["log"] = str(a.log)
         js["vehicle"] = vehicle.identity()
@@ -75,9 +75,7 @@ def _build(p: argparse.ArgumentParser):
         js["noise_pct_assumed"] = pct
         js["road_bank_rad"] = a.road_bank
         if banks:
-            b = np.asarray(banks)
-            js["road_bank_estimate_rad"] = {"median": float(np.median(b)), "p5": float(np.percentile(b, 5)),
-                                            "p95": float(np.percentile(b, 95)), "final": float(b[-1])}
+            js["road_bank_estimate_rad"] = banks
         last = res.assessments[-1]
         truth = truth_from_log(log, vehicle)
         print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; vehicle {vehicle.name}; road ahead: "

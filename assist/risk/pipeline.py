@@ -164,6 +164,14 @@ class BankEstimate:
             self.history.append(self.bank)
         return self.bank
 
+    def summary(self) -> dict[str, float] | None:
+        """The recorded estimates [rad] (``record=True``): ``{"median", "p5", "p95", "final"}``; None without any."""
+        if not self.history:
+            return None
+        b = np.asarray(self.history, dtype=float)
+        return {"median": float(np.median(b)), "p5": float(np.percentile(b, 5)), "p95": float(np.percentile(b, 95)),
+                "final": float(b[-1])}
+
 
 class RiskPipeline:
     """One estimator and one monitor, fed sample by sample.
