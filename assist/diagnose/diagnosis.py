@@ -38,7 +38,7 @@ from .hypotheses import (MAX_NFEV, PAIR_MIN, PAIR_PARTNERS, PAIR_PARTNERS_SCORE,
 from .noise import noise_levels
 from .extension import best_extension
 from .replay import Replay
-from .report import DiagnosisReport, sig
+from .report import DiagnosisReport, hypotheses_json, method_json
 from .where import breakdown
 
 #: Gauss-Newton steps on the initial states when scoring on held-out windows.
@@ -251,34 +251,11 @@ def diagnose(
     residual = breakdown(win, rv * replay.sigma, sig_v, roll)
     residual["ratio_to_noise"] = {c: round(float(x), 3) for c, x in zip(chans, ratio)}
 
-    order = selection.order(ranked)
-    hyp_json = [
-        {"causes": replay.params.to_causes(r.causes, fits[r.name].z), "gain": round(r.gain, 4), "score": round(r.score, 4),
-         "improvement": round(r.improvement, 4), "trimmed_improvement": round(r.trimmed, 4),
-         "support_margin": round(r.margin, 4), "supported": bool(r.supported)}
-        for r in order
-    ]
+    hyp_json = hypotheses_json(selection.order(ranked), lambda r: replay.params.to_causes(r.causes, fits[r.name].z))
     rms_0, rms_hv = (np.sqrt(((rt[h] * replay.sigma) ** 2).sum(axis=(0, 1)) / counts.sum(axis=0)) for h in (0, hv))
-    method = {
-        "replay": "multi-step prediction over short windows, each from its least-squares initial state",
-        "window_s": window_s,
-        "lead_s": round(win.lead * win.dt, 6),
-        "windows": {"fit": int(len(fit_w)), "held_out": int(len(test_w))},
-        "hypotheses": {"singles": sum(len(f.hypothesis.causes) == 1 for f in fits.values()),
-                       "pairs": sum(len(f.hypothesis.causes) == 2 for f in fits.values()),
-                       "pairs_rule": _pairs_rule(pairs)},
-        "encoder_quantum_rad": None if quantum is None else sig(quantum),
-        "score": f"accepted (supported) hypotheses: held-out improvement in noise variances - "
-                 f"{selection.PARAM_PENALTY} per parameter (> 0); none: 0; the others: their support margin "
-                 f"(< 0, how far they fall short of acceptance); hypotheses are listed by this score",
-        "support": f"held-out improvement >= {selection.MIN_IMPROVEMENT} noise variances per value, >= half "
-                   f"that without the {selection.TRIM:.0%} most improved held-out windows (at least one), "
-                   f"penalised improvement > 0, and for a pair the same over each of its single causes, paying "
-                   f"{selection.PARAM_PENALTY} for each parameter it adds; "
-                   f"support_margin is the smallest margin of these tests",
-        "explained": f"held-out RMS residual <= {1 + selection.EXPLAINED_TOL:g} x noise in every channel",
-        "notes": notes,
-    }
+    sizes = [len(f.hypothesis.causes) for f in fits.values()]
+    method = method_json(window_s, round(win.lead * win.dt, 6), len(fit_w), len(test_w), sizes.count(1),
+                         sizes.count(2), _pairs_rule(pairs), quantum, notes)
     Yn = replay.outputs(Z[0][None], test_w, _states(replay, Z[0], test_w))[0]
     z_shown = ext.z if ext is not None else Z[hv]  # the figure shows the extended model when there is one
     Ye = replay.outputs(z_shown[None], test_w, _states(replay, z_shown, test_w))[0]

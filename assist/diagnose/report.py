@@ -36,12 +36,48 @@ from ptw_env.dynamics import Plant, compile_plant
 from ptw_env.effects import Effects
 from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
 
+from . import selection
 from .measurement import UNITS
 
 
 def sig(x: float, digits: int = 4) -> float:
     """``x`` rounded to ``digits`` significant digits (finite floats only)."""
     return float(f"{float(x):.{digits}g}")
+
+
+def hypotheses_json(ranked, causes_of) -> list[dict[str, Any]]:
+    """The report's ``hypotheses`` list: per ranked hypothesis (:func:`assist.diagnose.selection.order`), its
+    causes (``causes_of(r)``, effects.md form), gain, score and the evidence (rounded to 4 decimals)."""
+    return [
+        {"causes": causes_of(r), "gain": round(r.gain, 4), "score": round(r.score, 4),
+         "improvement": round(r.improvement, 4), "trimmed_improvement": round(r.trimmed, 4),
+         "support_margin": round(r.margin, 4), "supported": bool(r.supported)}
+        for r in ranked
+    ]
+
+
+def method_json(window_s: float, lead_s: float, n_fit: int, n_held_out: int, singles: int, pairs: int,
+                pairs_rule: str, quantum: float | None, notes: list[str]) -> dict[str, Any]:
+    """The report's ``method``: the replay, windows [s] and their split, the hypotheses tried, the encoder
+    quantum [rad], and the acceptance criteria of :mod:`assist.diagnose.selection` in words."""
+    return {
+        "replay": "multi-step prediction over short windows, each from its least-squares initial state",
+        "window_s": window_s,
+        "lead_s": lead_s,
+        "windows": {"fit": int(n_fit), "held_out": int(n_held_out)},
+        "hypotheses": {"singles": int(singles), "pairs": int(pairs), "pairs_rule": pairs_rule},
+        "encoder_quantum_rad": None if quantum is None else sig(quantum),
+        "score": f"accepted (supported) hypotheses: held-out improvement in noise variances - "
+                 f"{selection.PARAM_PENALTY} per parameter (> 0); none: 0; the others: their support margin "
+                 f"(< 0, how far they fall short of acceptance); hypotheses are listed by this score",
+        "support": f"held-out improvement >= {selection.MIN_IMPROVEMENT} noise variances per value, >= half "
+                   f"that without the {selection.TRIM:.0%} most improved held-out windows (at least one), "
+                   f"penalised improvement > 0, and for a pair the same over each of its single causes, paying "
+                   f"{selection.PARAM_PENALTY} for each parameter it adds; "
+                   f"support_margin is the smallest margin of these tests",
+        "explained": f"held-out RMS residual <= {1 + selection.EXPLAINED_TOL:g} x noise in every channel",
+        "notes": notes,
+    }
 
 
 @dataclass
@@ -200,4 +236,4 @@ class DiagnosisReport:
         return fig
 
 
-__all__ = ["DiagnosisReport", "sig"]
+__all__ = ["DiagnosisReport", "hypotheses_json", "method_json", "sig"]
