@@ -78,6 +78,10 @@ References
    based identifiers" (``shared/papers/000_348caefc9b08ee38.txt``).
 .. [2] M. Chilali, P. Gahinet, "H-infinity design with pole placement
    constraints: an LMI approach", IEEE TAC 41(3), 1996.
+
+Length (about 730 lines): the two designs of the observer's gains (Theorem 2 and Kalman vertex gains) share
+the options, the data scaling, the pole disk and the certificate, and :func:`design_for_vehicle` chooses
+between their speed ranges; split, each half would import the other's private scaling.
 """
 
 from __future__ import annotations
