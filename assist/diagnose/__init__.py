@@ -9,6 +9,7 @@ The contract is ``shared/spec/diagnose.md``; the causes and their physics are
     report.effects                  # the verdict, e.g. gymnasium.make("PTWRoll-v0", effects=report.effects)
     report.extended_model()         # the verdict's compiled plant
     report.plot("report.png")
+    score_model("other_ride.csv", report)   # the fitted model, frozen, on another log of the vehicle
 
 Command line: ``ptw-assist diagnose LOG.csv --json REPORT.json --plot REPORT.png``
 (:mod:`assist.cli.diagnose`). How the replay stays honest on an open-loop
@@ -18,7 +19,7 @@ ranked and judged: :mod:`assist.diagnose.hypotheses`,
 """
 
 from .data import DiagnoseInputError
-from .diagnosis import diagnose
+from .diagnosis import TransferScore, diagnose, score_model
 from .report import DiagnosisReport
 
-__all__ = ["diagnose", "DiagnosisReport", "DiagnoseInputError"]
+__all__ = ["diagnose", "score_model", "TransferScore", "DiagnosisReport", "DiagnoseInputError"]

@@ -23,10 +23,12 @@ import math
 import os
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from ptw_env.logs import LogFormatError, RideLog, check_against_vehicle, read_log
+from ptw_env.effects import SENSOR_CAUSES
 from ptw_env.sensors import DEFAULT_NOISE_STD
 from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
 from ptw_env.vehicle_files import VehicleFileError, vehicle_of_log
@@ -154,10 +156,6 @@ def diagnose(
         window_s = _positive("window_s", window_s)
     if not isinstance(max_nfev, (int, np.integer)) or max_nfev < 1:
         raise DiagnoseInputError(f"diagnose: max_nfev must be a positive integer, got {max_nfev!r}")
-    if not (encoder_quantum is None or encoder_quantum == "auto" or
-            (isinstance(encoder_quantum, (int, float)) and encoder_quantum > 0)):
-        raise DiagnoseInputError(
-            f"diagnose: encoder_quantum must be a step in rad, None or 'auto', got {encoder_quantum!r}")
     if pairs not in (True, False, "all"):
         raise DiagnoseInputError(f"diagnose: pairs must be True, False or 'all', got {pairs!r}")
     if not (vehicle is None or isinstance(vehicle, Vehicle)):
@@ -168,22 +166,13 @@ def diagnose(
             vehicle = vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER
         except VehicleFileError as exc:
             raise DiagnoseInputError(str(exc)) from None
-    try:
-        check_against_vehicle(log, vehicle)
-    except LogFormatError as exc:
-        raise DiagnoseInputError(str(exc)) from None
+    # 1. nominal replay (weighted by the reference sensors' noise), noise levels from its residual
     if window_s is None:
         window_s = auto_window(log.duration_s, lead_s)
-    win, notes = make_windows(log, window_s, lead_s, vehicle.vmin, vehicle.vmax, source=name)
+    win, notes, replay, quantum = _nominal_replay(log, name, vehicle, window_s, lead_s, encoder_quantum)
     chans = win.channels
     all_w = np.arange(len(win))
     fit_w, test_w = np.flatnonzero(win.train), np.flatnonzero(~win.train)
-
-    # 1. nominal replay (weighted by the reference sensors' noise), noise levels from its residual
-    replay = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in chans]), vehicle)
-    r, _ = replay.fit_states(replay.params.nominal[None], all_w)
-    noise, quantum = noise_levels(r[0] * replay.sigma, win.score, chans, encoder_quantum)
-    replay.set_sigma(np.array([noise[c] for c in chans]))
 
     # 2. fit every hypothesis on the fitting windows
     hyps = all_hypotheses(bool(pairs))
@@ -281,7 +270,118 @@ def diagnose(
         plot_data=plot_data,
         extension=None if ext is None else ext.to_json(),
         extended=extended,
+        model_z=np.array(z_shown, dtype=float),
+        verdict_z=np.array(Z[hv], dtype=float),
     )
+
+
+def _nominal_replay(log: RideLog, name: str, vehicle: Vehicle, window_s: float | None, lead_s: float,
+                    encoder_quantum: float | None | str):
+    """The log checked against the vehicle, cut into windows, and the nominal model replayed on all of
+    them; the replay's weights are set to the noise levels that residual shows. Returns the windows,
+    the notes of the cut, the replay and the encoder step used."""
+    if not (encoder_quantum is None or encoder_quantum == "auto" or
+            (isinstance(encoder_quantum, (int, float)) and encoder_quantum > 0)):
+        raise DiagnoseInputError(
+            f"diagnose: encoder_quantum must be a step in rad, None or 'auto', got {encoder_quantum!r}")
+    try:
+        check_against_vehicle(log, vehicle)
+    except LogFormatError as exc:
+        raise DiagnoseInputError(str(exc)) from None
+    win, notes = make_windows(log, window_s if window_s is not None else auto_window(log.duration_s, lead_s), lead_s,
+                              vehicle.vmin, vehicle.vmax, source=name)
+    replay = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in win.channels]), vehicle)
+    r, _ = replay.fit_states(replay.params.nominal[None], np.arange(len(win)))
+    noise, quantum = noise_levels(r[0] * replay.sigma, win.score, win.channels, encoder_quantum)
+    replay.set_sigma(np.array([noise[c] for c in win.channels]))
+    return win, notes, replay, quantum
+
+
+@dataclass(frozen=True)
+class TransferScore:
+    """How a model fitted on one log predicts another (:func:`score_model`)."""
+
+    log: str  #: the log scored
+    model_from: str  #: the log the model was fitted on
+    parts: str  #: "all" or "vehicle" (sensor parameters back at nominal)
+    model: str  #: "reported" (the extension when there is one) or "verdict" (effects.md causes only)
+    gain: float  #: ``1 - sqrt(S_model / S_nominal)`` over every window of the log
+    gain_channels: dict[str, float]  #: the same per channel
+    windows: int  #: windows scored
+
+    @property
+    def diverged(self) -> bool:
+        """The frozen model's replay diverged on the log (its gain is ``-inf``)."""
+        return not math.isfinite(self.gain)
+
+    def to_json(self) -> dict:
+        """JSON form; a diverged replay's gains are null (JSON holds no inf)."""
+        def num(v: float) -> float | None:
+            return round(v, 4) if math.isfinite(v) else None
+
+        return {"log": self.log, "model_from": self.model_from, "model": self.model, "parts": self.parts,
+                "gain": num(self.gain),
+                "diverged": self.diverged, "gain_channels": {c: num(v) for c, v in self.gain_channels.items()},
+                "windows": self.windows}
+
+
+def sensor_indices() -> tuple[int, ...]:
+    """Indices of the parameter vector that describe the sensors rather than the vehicle: effects.md's
+    sensor causes and the ``sensor:*`` closure terms."""
+    from .params import CAUSES, CLOSURE_INDEX, CLOSURES
+
+    idx = [i for c in SENSOR_CAUSES for i in CAUSES[c]]
+    idx += [CLOSURE_INDEX[n] for n, t in CLOSURES.items() if t.equation.startswith("sensor:")]
+    return tuple(sorted(idx))
+
+
+def score_model(log_or_path: RideLog | str | os.PathLike, report: DiagnosisReport, *, parts: str = "all",
+                model: str = "reported", window_s: float | None = None, lead_s: float = 0.1,
+                encoder_quantum: float | None | str = "auto") -> TransferScore:
+    """Score ``report``'s model, frozen, on another log of the same vehicle (issue 19: across runs).
+
+    Nothing is fitted on the scored log but each window's initial state (the same multiple
+    shooting as the within-log score, :meth:`assist.diagnose.replay.Replay.fit_states`), so every
+    window is held out. The noise weights come from the nominal residual of that log
+    (:func:`assist.diagnose.noise.noise_levels`), as in :func:`diagnose`; the gain is
+    :mod:`assist.diagnose.selection`'s, ``1 - sqrt(S_model / S_nominal)``, S the noise-weighted sum
+    of squared residuals: positive when the model predicts the other log better than the nominal
+    model does, negative when worse.
+
+    ``parts="vehicle"`` puts the sensor parameters (:func:`sensor_indices`: offsets, scales, biases
+    and delays, which belong to one ride's instruments) back at their nominal values and keeps the
+    vehicle's (damping, closure forces and moments, ...); ``"all"`` keeps every fitted value.
+    ``model="verdict"`` scores the effects.md verdict alone instead of the reported model (the
+    extension, when the log was extended), which says whether the closure terms carry over.
+    """
+    if parts not in ("all", "vehicle"):
+        raise DiagnoseInputError(f"score_model: parts must be 'all' or 'vehicle', got {parts!r}")
+    if model not in ("reported", "verdict"):
+        raise DiagnoseInputError(f"score_model: model must be 'reported' or 'verdict', got {model!r}")
+    if not isinstance(report, DiagnosisReport) or report.model_z is None or report.verdict_z is None:
+        raise DiagnoseInputError("score_model: give a DiagnosisReport made by diagnose() (it carries model_z)")
+    lead_s = _positive("lead_s", lead_s)
+    if window_s is not None:
+        window_s = _positive("window_s", window_s)
+    log, name = _load(log_or_path)
+    win, _, replay, _ = _nominal_replay(log, name, report.vehicle, window_s, lead_s, encoder_quantum)
+    chans = win.channels
+    all_w = np.arange(len(win))
+    nominal = replay.params.nominal
+    z = np.array(report.model_z if model == "reported" else report.verdict_z, dtype=float)
+    if z.shape != nominal.shape:
+        raise DiagnoseInputError(f"score_model: the report's model has {z.size} parameters, "
+                                 f"this vehicle's model {nominal.size}")
+    if parts == "vehicle":
+        idx = list(sensor_indices())
+        z[idx] = nominal[idx]
+    rt, _ = replay.fit_states(np.stack([nominal, z]), all_w, steps=SCORE_STATE_STEPS)
+    S = (rt**2).sum(axis=(1, 2))  # (2, C)
+    if not np.all(np.isfinite(S)):  # the frozen model diverges on this log: no prediction at all
+        return TransferScore(name, report.log, parts, model, -math.inf, {c: -math.inf for c in chans}, len(win))
+    gain_c = {c: (1.0 - math.sqrt(S[1, i] / S[0, i])) if S[0, i] > 0 else 0.0 for i, c in enumerate(chans)}
+    total = 1.0 - math.sqrt(S[1].sum() / S[0].sum()) if S[0].sum() > 0 else 0.0
+    return TransferScore(name, report.log, parts, model, float(total), gain_c, len(win))
 
 
 def _pairs_rule(pairs: bool | str) -> str:

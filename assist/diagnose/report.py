@@ -123,6 +123,11 @@ class DiagnosisReport:
     plot_data: dict[str, Any] = field(default_factory=dict, repr=False)
     extension: dict | None = None  #: diagnose.md verdict.extension (closure terms and their gain), or None
     extended: bool = False  #: the extended model explains the log to within the noise
+    #: internal parameter vector (:mod:`assist.diagnose.params`) of the reported model: the extension's when there is one,
+    #: else the verdict's; what :func:`assist.diagnose.score_model` replays on another log of the same vehicle
+    model_z: np.ndarray | None = field(default=None, repr=False)
+    #: internal parameter vector of the effects.md verdict alone (equal to :attr:`model_z` without an extension)
+    verdict_z: np.ndarray | None = field(default=None, repr=False)
 
     # -- the extended model ----------------------------------------------------------
     @property
