@@ -66,16 +66,20 @@ class OutsideStepper:
     """
 
     def __init__(self, plant, dt: float, torque: Term | None = None, force: Term | None = None,
-                 height: float = 0.9) -> None:
+                 height: float = 0.9, yaw_moment: Term | None = None) -> None:
         self.plant, self.dt = plant, float(dt)
         self.nsub = substeps_for(self.dt)
         self._flat = plant.flat()
-        self.torque, self.force = torque, force
+        self.torque, self.force, self.yaw_moment = torque, force, yaw_moment
         g = np.zeros(8)
         g[2], g[4] = 1.0, height
         gen = np.linalg.solve(plant.vehicle.E, g)
         gen[6:] = 0.0  # the tire relaxation rows carry no body force
         self._gen = gen
+        gy = np.zeros(8)
+        gy[3] = 1.0  # row 4: a yaw moment [N m]
+        self._gen_yaw = np.linalg.solve(plant.vehicle.E, gy)
+        self._gen_yaw[6:] = 0.0
         self._x, self._t, self._v, self._out = np.empty((1, 8)), np.empty(1), np.empty(1), np.empty((1, 8))
 
     def _f(self, x: np.ndarray, tau: float, vx: float, d: float) -> np.ndarray:
@@ -86,6 +90,8 @@ class OutsideStepper:
         f = self._out[0].copy()
         if self.force:
             f += self._gen * self.force(x, vx)
+        if self.yaw_moment:
+            f += self._gen_yaw * self.yaw_moment(x, vx)
         if d:
             raise NotImplementedError("roll-moment disturbances are not used with the test plants")
         return f
@@ -133,12 +139,21 @@ def stepper_kw_repr(kw: dict) -> str:
     return ", ".join(f"{k}={getattr(v, '__doc__', None) or v!r}" for k, v in kw.items())
 
 
-def yaw_gyro_scale(log: RideLog, k: float) -> RideLog:
-    """``log`` with a yaw-rate gyro scale-factor error ``k`` (module docstring)."""
+def sensor_error(log: RideLog, channel: str, offset: float = 0.0, scale: float = 0.0,
+                 truth: np.ndarray | None = None) -> RideLog:
+    """``log`` with ``channel`` read as ``y + offset + scale * truth`` (``truth`` the true signal of the
+    channel, default the log's ``x_<channel>`` column), so that the noise stays the sensor's."""
     cols = dict(log.columns)
-    cols["yaw_rate"] = cols["yaw_rate"] + (k - 1.0) * cols["x_r"]
-    meta = dict(log.meta, truth={"causes": [], "outside_effects_md": f"yaw-rate gyro scale factor {k}"})
+    if truth is None and scale:
+        truth = cols[f"x_{channel}"]
+    cols[channel] = cols[channel] + offset + (scale * np.asarray(truth) if scale else 0.0)
+    meta = dict(log.meta, truth={"causes": [], "outside_effects_md": f"{channel}: offset {offset}, scale factor {1 + scale}"})
     return RideLog(t=log.t, columns=cols, meta=meta, path=None)
 
 
-__all__ = ["OutsideStepper", "ride_outside", "yaw_gyro_scale"]
+def yaw_gyro_scale(log: RideLog, k: float) -> RideLog:
+    """``log`` with a yaw-rate gyro scale-factor error ``k`` (module docstring)."""
+    return sensor_error(log, "yaw_rate", scale=k - 1.0, truth=log.columns["x_r"])
+
+
+__all__ = ["OutsideStepper", "ride_outside", "sensor_error", "yaw_gyro_scale"]
