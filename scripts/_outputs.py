@@ -42,3 +42,13 @@ def output_file(parser: argparse.ArgumentParser, option: str, path: str | os.Pat
     if f.exists() and not overwrite:
         parser.error(f"{option}: {f} exists; pass --overwrite to replace it")
     return f
+
+
+def shared_data(sub: str) -> Path:
+    """The folder ``shared/data/<sub>`` of the project's disclosed data: ``$PTW_SHARED_DIR``, else ``../shared``
+    beside the checkout, else ``/work/shared``; exits with one line when none holds it."""
+    root = Path(__file__).resolve().parents[1]
+    for c in (os.environ.get("PTW_SHARED_DIR"), root.parent / "shared", Path("/work/shared")):
+        if c and (Path(c) / "data" / sub).is_dir():
+            return Path(c) / "data" / sub
+    raise SystemExit(f"shared/data/{sub} not found; pass --data or set PTW_SHARED_DIR")

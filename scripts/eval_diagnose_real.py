@@ -38,14 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _outputs import add_overwrite, output_dir  # noqa: E402
-
-
-def _default_data() -> Path:
-    for c in (os.environ.get("PTW_SHARED_DIR"), ROOT.parent / "shared", Path("/work/shared")):
-        if c and (Path(c) / "data" / "robot_bicycle").is_dir():
-            return Path(c) / "data" / "robot_bicycle"
-    raise SystemExit("shared/data/robot_bicycle not found; pass --data or set PTW_SHARED_DIR")
+from _outputs import add_overwrite, output_dir, shared_data  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="out/diagnose_real", help="output folder")
     add_overwrite(ap)
     a = ap.parse_args(argv)
-    data = Path(a.data) if a.data else _default_data()
+    data = Path(a.data) if a.data else shared_data("robot_bicycle")
     paths = sorted(data.glob("*.csv"))
     if not paths:
         ap.error(f"no .csv ride log in {data}")
@@ -110,14 +103,16 @@ def main(argv: list[str] | None = None) -> int:
                     G[w][i, j] = score_model(log, rep, model=model, parts=parts).gain
     cross_s = time.perf_counter() - t0
     off = ~np.eye(len(paths), dtype=bool)
+    # a transfer whose replay diverged has gain -inf: counted as diverged, left out of median and min
     cross = {w: {"matrix_from_row_on_column": [[None if not np.isfinite(v) else round(float(v), 4) for v in row]
                                                for row in g],
-                 "median": float(np.median(g[off])), "min": float(np.min(g[off])),
-                 "positive": int(np.sum(g[off] > 0)), "pairs": int(off.sum())} for w, g in G.items()}
+                 "median": float(np.median(g[off & np.isfinite(g)])), "min": float(np.min(g[off & np.isfinite(g)])),
+                 "positive": int(np.sum(g[off] > 0)), "diverged": int(np.sum(off & ~np.isfinite(g))),
+                 "pairs": int(off.sum())} for w, g in G.items()}
     extended_rows = [i for i, r in enumerate(rows) if r["extension"]]
     ext_off = np.zeros_like(off)
     ext_off[extended_rows] = True
-    ext_off &= off
+    ext_off &= off & np.isfinite(G["reported_all"]) & np.isfinite(G["verdict_all"])
     cross["extension_beats_verdict"] = {"pairs": int(ext_off.sum()),
                                         "better": int(np.sum(G["reported_all"][ext_off] > G["verdict_all"][ext_off])),
                                         "median_difference": float(np.median(G["reported_all"][ext_off]
@@ -141,12 +136,12 @@ def main(argv: list[str] | None = None) -> int:
               "Each run's model, frozen, scored on each of the other runs (every window held out; "
               "`assist.diagnose.score_model`). Gain over the nominal model, over the "
               f"{cross['reported_all']['pairs']} ordered pairs:", "",
-              "| model carried over | median | min | pairs with a positive gain |", "|---|---|---|---|"]
+              "| model carried over | median | min | pairs with a positive gain | diverged |", "|---|---|---|---|---|"]
     for w, label in (("reported_all", "reported model (extension if any), every fitted value"),
                      ("reported_vehicle", "the same, sensor parameters at nominal"),
                      ("verdict_all", "effects.md verdict alone")):
         c = cross[w]
-        lines.append(f"| {label} | {c['median']:.3f} | {c['min']:.3f} | {c['positive']} of {c['pairs']} |")
+        lines.append(f"| {label} | {c['median']:.3f} | {c['min']:.3f} | {c['positive']} of {c['pairs']} | {c['diverged']} |")
     eb = cross["extension_beats_verdict"]
     if eb["pairs"]:
         lines += ["", f"From the {len(extended_rows)} extended runs: the extension predicts the other run better than "

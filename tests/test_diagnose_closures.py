@@ -2,7 +2,7 @@
 
 The hidden effect is not in effects.md, so no table cause can claim it: the diagnosis must extend
 the model with the closure term of :data:`assist.diagnose.params.CLOSURE_LIBRARY` that is the hidden
-physics, and fit its coefficient within 25 %. The dynamic terms are added by the test-only plant
+physics, and fit its coefficient within 25 % (issue 19; held to 10 % here). The dynamic terms are added by the test-only plant
 of :mod:`outside_effects` (an RK4 that evaluates the extra force or moment at every stage, not the
 project's generalised-force features), the sensor terms to the logged channel with the sensor's
 noise kept. Sizes are fractions of each term's search bound, which follows the vehicle
@@ -68,7 +68,8 @@ def test_hidden_closure_term_is_found_with_its_coefficient(term, c):
     assert v["explained"] is False, v["causes"]  # no table cause explains it
     terms = {t["name"]: t for t in (v.get("extension") or {}).get("terms", [])}
     assert term in terms, (v["causes"], terms)
-    assert abs(terms[term]["coefficient"] - c) <= 0.25 * abs(c), terms[term]
+    # issue 19 asks for 25 %; measured within 3 % (module docstring), held to 10 %
+    assert abs(terms[term]["coefficient"] - c) <= 0.10 * abs(c), terms[term]
     assert rep.extension["gain"] > rep.gain  # the closure buys held-out accuracy over the table's stand-in
 
 
@@ -77,4 +78,4 @@ def test_an_accelerometer_scale_error_is_named_as_its_equivalent_ay_frame():
     ay_true = (lg.columns["x_Fyf"] + lg.columns["x_Fyr"]) / REFERENCE_SCOOTER.mass  # model.md's ay row
     rep = diagnose(sensor_error(lg, "ay", scale=0.2, truth=ay_true), progress=False)
     assert rep.causes[0]["cause"] == "ay_frame" and rep.explained, rep.causes
-    assert abs(-rep.causes[0]["params"]["gravity_gain"] - 0.2) <= 0.25 * 0.2
+    assert abs(-rep.causes[0]["params"]["gravity_gain"] - 0.2) <= 0.15 * 0.2  # measured 0.178

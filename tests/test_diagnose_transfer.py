@@ -56,12 +56,6 @@ def test_a_fitted_bank_carries_to_another_banked_ride_and_not_to_a_level_one(ban
     assert js["model_from"] == bank_report.log and js["parts"] == "all" and not js["diverged"]
 
 
-def test_the_nominal_model_scores_zero_gain(bank_report):
-    nominal = dataclasses.replace(bank_report, model_z=param_set(bank_report.vehicle).nominal)
-    s = score_model(ride("double_lane_change", BANK, seed=12, duration_s=24.0), nominal)
-    assert s.gain == pytest.approx(0.0, abs=1e-12)
-
-
 def test_a_sensor_cause_is_the_nominal_model_without_its_sensor_parameters():
     effects = {"gyro_bias": {"yaw_rate_bias": 0.01, "roll_rate_bias": -0.008}}
     rep = diagnose(ride("handling", effects, seed=31, duration_s=30.0), pairs=False, progress=False,

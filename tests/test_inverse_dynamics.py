@@ -30,8 +30,8 @@ def test_a_hidden_steering_damping_is_recovered(vehicle, kmh, damping):
     fit = steer_equation_fit(r.log, vehicle, roll=r.log.columns["x_phi"])
     # effects.md's steer_damping sets a66 = -damping_nms; the fit measures what it adds to the file's own
     added = damping + float(vehicle.A0[5, 5])
-    assert fit["damping_nms"] == pytest.approx(added, rel=0.05), fit
-    assert abs(fit["damping_nms"] - added) < 5 * fit["damping_std"] + 0.02 * added, fit
+    assert fit["damping_nms"] == pytest.approx(added, rel=0.02), fit  # measured -0.85 % (bicycle), -0.19 % (scooter)
+    assert fit["damping_std"] < 0.1 * added, fit  # and the data say how well: a tight 1-sigma
 
 
 def test_no_damping_is_fitted_on_a_clean_ride():
