@@ -28,12 +28,11 @@ import argparse
 import json
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-from tqdm import tqdm
 
 from ptw_env.cli import road_bank
+from ptw_env.jobs import JobsError, run_jobs
 
 from assist.risk.evaluation import KINDS, WARNABLE_S, estimator_figures, make_case, run_case
 from assist.risk.offline import plot_risk, replay
@@ -43,22 +42,25 @@ from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.
 #: not confirmed at 2 sigma) and one that acts on the estimate alone.
 VARIANTS = {"default": {}, "estimate_only": {"confirm_sigmas": 0.0}}
 
-_PIPE = None
+_PIPES: dict = {}  # one pipeline per road-bank setting in each worker (its design is the slow part)
 #: --road-bank ("auto", the default; a number [rad]; None: the estimator's level road), set by main()
 _ROAD_BANK: float | str | None = "auto"
 
 
-def _one(args: tuple[str, int, str | None]) -> dict:
-    global _PIPE
-    kind, seed, fig = args
+def _one(args: tuple) -> dict:
+    """One ride: ``(kind, seed, figure path or None, road bank setting)``; everything the job needs is in
+    its arguments (a spawned worker or a Dask worker does not see this process's globals)."""
+    kind, seed, fig, bank = args
     from assist.risk.pipeline import RiskPipeline, default_estimator
 
-    if _PIPE is None:
-        _PIPE = RiskPipeline(default_estimator(5.0), road_bank=_ROAD_BANK)
+    key = repr(bank)
+    if key not in _PIPES:
+        _PIPES[key] = RiskPipeline(default_estimator(5.0), road_bank=bank)
+    pipe = _PIPES[key]
     from assist.risk.monitor import RiskConfig, RiskMonitor
 
     t0 = time.perf_counter()
-    res = run_case(make_case(kind, seed), pipeline=_PIPE)
+    res = run_case(make_case(kind, seed), pipeline=pipe)
     out = {}
     for name, over in VARIANTS.items():
         run = res.run if not over else replay(res.run, RiskMonitor(RiskConfig(**over)))
@@ -243,7 +245,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=20, help="seeds per ride type (default 20)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated ride types (default {','.join(KINDS)})")
-    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--workers", type=int, default=1, help="local processes (default 1), or the size of a local "
+                                                         "Dask cluster with --scheduler local")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a Dask scheduler tcp://HOST:PORT or 'local' (ptw_env.jobs; the [cluster] extra)")
     p.add_argument("--out", default="out/risk", help="output directory (default out/risk/)")
     p.add_argument("--figure-seed", type=int, default=None, help="seed of the timeline figures (default: the first)")
     p.add_argument("--road-bank", default="auto", metavar="RAD|auto|none",
@@ -269,12 +274,12 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [(k, s, str(out / f"timeline_{k}.png") if s == fseed else None)
             for k in kinds for s in range(a.first_seed, a.first_seed + a.seeds)]
     t0 = time.perf_counter()
-    bar = dict(total=len(jobs), desc="rides", unit="ride")
-    if a.workers > 1:
-        with ProcessPoolExecutor(a.workers) as ex:
-            rides = list(tqdm(ex.map(_one, jobs), **bar))
-    else:
-        rides = [_one(j) for j in tqdm(jobs, **bar)]
+    try:  # the execution layer: serial, local processes (--workers) or a Dask cluster (--scheduler)
+        done = run_jobs(_one, [((k, s), ((k, s, fig, _ROAD_BANK),)) for k, s, fig in jobs], workers=a.workers,
+                        scheduler=a.scheduler, desc="rides")
+    except JobsError as e:
+        p.error(str(e))
+    rides = list(done.values())
     # the rides first: a summary that fails must not lose them
     (out / "rides.json").write_text(json.dumps(rides, indent=1, allow_nan=False, default=float) + "\n")
     summary = {v: summarise(rides, v) for v in VARIANTS}

@@ -1,14 +1,20 @@
-"""``ptw-assist diagnose LOG.csv --json REPORT.json [--plot REPORT.png]`` (``shared/spec/diagnose.md``).
+"""``ptw-assist diagnose LOG.csv [LOG2.csv ...] --json REPORT.json [--plot REPORT.png]`` (diagnose.md, cli.md).
 
-Registered into the one command line of :mod:`ptw_env.cli` when it builds its
-parser (``import assist.cli.diagnose``). A bad log ends with one line naming
-the file, the line and the column (:class:`ptw_env.logs.LogFormatError`) and
-exit status 2.
+One log: its report (``--json``) and figure (``--plot``). Many logs (files, folders of ``*.csv``
+or glob patterns), or ``--out DIR``: one report and figure per log in ``DIR``, the fleet table
+``DIR/fleet.csv``, the fleet's JSON (``--json``) and figure (``--plot``), run on the execution
+layer (:mod:`ptw_env.jobs`: ``--workers N`` local processes, ``--scheduler ADDRESS`` a Dask
+cluster; ``--resume`` skips the logs a previous run finished). Every log is read and checked
+against its vehicle before any work. Registered into the one command line of :mod:`ptw_env.cli`
+when it builds its parser (``import assist.cli.diagnose``). A bad log ends with one line naming
+the file, the line and the column (:class:`ptw_env.logs.LogFormatError`) and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import glob
+import os
 from pathlib import Path
 
 from ptw_env.cli import (
@@ -24,6 +30,36 @@ from ptw_env.cli import (
 
 #: ``--window``: replay window length [s].
 _window = number(0.2, 20.0, unit="s")
+#: ``--workers``: local processes, or the size of a local Dask cluster.
+_workers = number(1, 256, integer=True)
+
+
+def expand_logs(items: list[str]) -> list[str]:
+    """The ride logs of the positional arguments: a file as given, a folder's ``*.csv`` (sorted), a glob
+    pattern's matches (sorted); each log once. Nothing found for one item is one :class:`CLIError` naming it."""
+    out: list[str] = []
+    for it in items:
+        if any(ch in it for ch in "*?["):
+            found = sorted(glob.glob(it))
+            if not found:
+                raise CLIError(f"{it}: no file matches this pattern")
+        elif Path(it).is_dir():
+            found = sorted(str(p) for p in Path(it).glob("*.csv"))
+            if not found:
+                raise CLIError(f"{it}: a folder with no .csv ride log in it")
+        elif not Path(it).exists():
+            raise FileNotFoundError(f"{it}: no such file")
+        else:
+            found = [it]
+        out += found
+    seen: set[str] = set()
+    unique = []
+    for p in out:
+        key = os.path.realpath(p)
+        if key not in seen:
+            seen.add(key)
+            unique.append(p)
+    return unique
 
 
 @command(
@@ -33,11 +69,25 @@ _window = number(0.2, 20.0, unit="s")
     "ptw-assist diagnose ride.csv --json report.json --plot report.png",
 )
 def _build_diagnose(p: argparse.ArgumentParser):
-    p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md), with an optional JSON sidecar")
+    p.add_argument("logs", nargs="+", metavar="LOG.csv",
+                   help="ride log(s) (logs.md, optional JSON sidecar): files, folders (their *.csv) or glob patterns")
     add_vehicle_option(p, from_log=True)
-    p.add_argument("--json", default=None, metavar="REPORT.json", help="write the report (diagnose.md)")
+    p.add_argument("--json", default=None, metavar="REPORT.json",
+                   help="write the report (diagnose.md); with many logs the fleet's JSON (one row per log)")
     p.add_argument("--plot", default=None, metavar="REPORT.png",
-                   help="measured vs nominal vs extended model, residual before/after")
+                   help="measured vs nominal vs extended model, residual before/after; with many logs the "
+                        "fleet's figure (held-out gain per log)")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="with many logs (required then): the folder of the per-log reports and figures and of "
+                        "the fleet table fleet.csv")
+    p.add_argument("--workers", type=_workers, default=1, metavar="N",
+                   help="logs diagnosed at once in local processes (default 1), or the size of a local Dask "
+                        "cluster with --scheduler local")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a Dask scheduler, tcp://HOST:PORT, or 'local' (default: DASK_SCHEDULER_ADDRESS if set; "
+                        "needs the [cluster] extra)")
+    p.add_argument("--resume", action="store_true",
+                   help="with --out: keep the logs a previous run finished (DIR/fleet_jobs.jsonl), diagnose the rest")
     p.add_argument("--window", type=_window, default=None, metavar="S",
                    help="replay window length [s] (default 2, shorter for short logs)")
     p.add_argument("--pairs", choices=("auto", "all", "none"), default="auto",
@@ -52,17 +102,17 @@ def _build_diagnose(p: argparse.ArgumentParser):
 
     def run(a: argparse.Namespace) -> int:
         from assist.diagnose import diagnose
-
-        check_outputs(a, "json", "plot")
-        log = Path(a.log)
-        if not log.exists():
-            raise FileNotFoundError(f"{log}: no such file")
-        if log.is_dir():
-            raise CLIError(f"{log} is a directory, not a ride log")
         from ptw_env.logs import read_log
 
+        logs = expand_logs(a.logs)
         pairs = {"auto": True, "all": "all", "none": False}[a.pairs]
-        ride = read_log(log)
+        if len(logs) > 1 or a.out is not None:
+            return _fleet(a, logs, pairs)
+        if a.resume or a.workers != 1 or a.scheduler is not None:
+            raise CLIError("--resume, --workers and --scheduler are for many logs (give --out DIR)")
+        a.log = logs[0]
+        check_outputs(a, "json", "plot")
+        ride = read_log(a.log)
         v = vehicle_for_log(a, ride)  # --vehicle, else the sidecar's, else the reference scooter
         print(f"vehicle: {v.name}")
         rep = diagnose(ride, window_s=a.window, pairs=pairs, progress=False if a.no_progress else None, vehicle=v)
@@ -72,3 +122,49 @@ def _build_diagnose(p: argparse.ArgumentParser):
         return 0
 
     return run
+
+
+def _fleet(a: argparse.Namespace, logs: list[str], pairs) -> int:
+    """Many logs: check them all, then diagnose them on the execution layer (module docstring)."""
+    from assist.diagnose.fleet import diagnose_fleet, plot_fleet
+    from ptw_env.jobs import JobsError, executor_name
+    from ptw_env.logs import read_log
+
+    if a.out is None:
+        raise CLIError(f"{len(logs)} logs: give --out DIR for their reports and the fleet table")
+    out = Path(a.out)
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"--out: {out} is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not (a.overwrite or a.resume):
+        raise CLIError(f"--out: {out} is not empty; pass --resume to continue a run there or --overwrite to replace it")
+    if a.resume and not (out / "fleet_jobs.jsonl").exists():
+        raise CLIError(f"--resume: {out} holds no previous run (fleet_jobs.jsonl)")
+    try:
+        where = executor_name(a.workers, a.scheduler)
+    except JobsError as exc:
+        raise CLIError(f"--scheduler/--workers: {exc}") from None
+    check_outputs(a, "json", "plot")
+    reports = {os.path.realpath(out / f"{Path(p).stem}{suffix}") for p in logs for suffix in (".json", ".png")}
+    reports |= {os.path.realpath(out / n) for n in ("fleet.csv", "fleet_jobs.jsonl")}
+    for opt in ("json", "plot"):
+        path = getattr(a, opt)
+        if path is not None and os.path.realpath(path) in reports:
+            raise CLIError(f"--{opt}: {path} is one of the files written in --out; name it otherwise")
+    vehicles = []
+    for p in logs:  # every log read and checked against its vehicle before any work
+        vehicles.append(vehicle_for_log(a, read_log(p)))
+    print(f"{len(logs)} logs; executor: {where}; reports in {out}/")
+    try:
+        rows = diagnose_fleet(logs, out, vehicles=vehicles, window_s=a.window, pairs=pairs, workers=a.workers,
+                              scheduler=a.scheduler, resume=a.resume, progress=not a.no_progress)
+    except JobsError as exc:
+        raise CLIError(str(exc)) from None
+    for r in rows:
+        causes = ", ".join(c["cause"] for c in r["causes"])
+        ext = "" if r["extension"] is None else "; extended: " + ", ".join(t["name"] for t in r["extension"])
+        print(f"  {r['log_name']}: {causes} (gain {r['gain']:.3f}, {'explained' if r['explained'] else 'not explained'}){ext}")
+    print(f"fleet table written to {out / 'fleet.csv'}")
+    obj = {"logs": rows, "executor": where,
+           "vehicles": {v.name: v.identity() for v in vehicles}} if a.json else None
+    emit(a, obj, {"plot": lambda path: plot_fleet(rows, path)}, what="fleet JSON")
+    return 0

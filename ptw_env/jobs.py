@@ -1,0 +1,229 @@
+"""One execution layer for independent jobs: serial, local processes, or a Dask cluster (issue 22).
+
+Evaluations over seeds, sweeps over parameters and fleets of ride logs are maps of one function over
+independent jobs. :func:`run_jobs` runs such a map on
+
+* ``serial``: one after the other in this process (``workers=1``, no scheduler);
+* local processes (``workers=N``, the default executor; no extra dependency):
+  :class:`concurrent.futures.ProcessPoolExecutor`, started by ``spawn`` (a ``fork`` of a process
+  whose numba kernels have started OpenMP threads is unsafe and is killed);
+* a Dask cluster (``scheduler="tcp://HOST:PORT"``, or the ``DASK_SCHEDULER_ADDRESS`` environment
+  variable): :class:`distributed.Client` on that scheduler; ``scheduler="local"`` starts a
+  :class:`distributed.LocalCluster` of ``workers`` processes on this machine. Dask is the optional
+  extra ``pip install "ptw-assist[cluster]"``.
+
+What it guarantees, whatever the executor:
+
+* **the same results**: a job carries everything it needs, its seed included (seeds are per job,
+  never per worker), so the function gives the same numbers wherever it runs;
+* **nothing finished is lost**: with ``results=PATH`` every result is appended to a JSON-lines file
+  as it arrives (flushed and synced), one line per job, ``{"key": ..., "result": ...}``. A rerun
+  with the same file skips the keys it holds and runs only the rest; a line cut by a crash is
+  ignored (and its job rerun). On Dask a worker that dies has its unfinished jobs rescheduled on
+  the others (the scheduler's own retry), and the finished ones are already on the client;
+* a progress bar on the client (tqdm), unless ``progress=False``.
+
+Results must be JSON-serialisable when ``results`` is given (numbers, strings, lists, dicts;
+strict JSON, so no NaN or inf), and the function must be importable by the workers (a module-level
+function, not a lambda), as for any process pool.
+
+>>> from ptw_env.jobs import run_jobs
+>>> run_jobs(pow, [("a", (2, 3)), ("b", (3, 2))], progress=False)
+{'a': 8, 'b': 9}
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import multiprocessing
+import os
+from collections.abc import Callable, Hashable, Iterable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
+from typing import Any
+
+#: Environment variable naming a Dask scheduler (Dask's own convention).
+SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
+
+
+class JobsError(ValueError):
+    """A bad executor setting (workers, scheduler), a results file that cannot be used, or a missing extra."""
+
+
+def _executor(workers: int, scheduler: str | None) -> str:
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise JobsError(f"workers must be a positive integer, got {workers!r}")
+    if scheduler is None:
+        scheduler = os.environ.get(SCHEDULER_ENV) or None
+    if scheduler is not None:
+        if not isinstance(scheduler, str) or not (scheduler == "local" or "://" in scheduler):
+            raise JobsError(f"scheduler must be 'local' or an address such as tcp://HOST:PORT, got {scheduler!r}")
+        return scheduler
+    return "serial" if workers == 1 else "processes"
+
+
+def executor_name(workers: int = 1, scheduler: str | None = None) -> str:
+    """Which executor :func:`run_jobs` uses for these settings: ``serial``, ``processes``, ``local`` (a
+    Dask LocalCluster) or the scheduler's address."""
+    return _executor(workers, scheduler)
+
+
+def _load_done(path: Path) -> dict[str, Any]:
+    """Keys and results already in a results file (a line cut by a crash is skipped)."""
+    done: dict[str, Any] = {}
+    if not path.exists():
+        return done
+    if not path.is_file():
+        raise JobsError(f"results: {path} is not a regular file")
+    with path.open("r", encoding="utf-8") as f:
+        for line in f:
+            try:
+                row = json.loads(line)
+                done[_key_text(row["key"])] = row["result"]
+            except (ValueError, KeyError, TypeError):
+                continue  # an incomplete last line: that job runs again
+    return done
+
+
+def _key_text(key: Hashable) -> str:
+    return json.dumps(key, sort_keys=True) if not isinstance(key, str) else key
+
+
+def _check_finite(obj: Any, key: Hashable) -> None:
+    if isinstance(obj, float) and not math.isfinite(obj):
+        raise JobsError(f"job {key!r}: its result holds {obj}; results files are strict JSON (say what diverged instead)")
+    if isinstance(obj, dict):
+        for v in obj.values():
+            _check_finite(v, key)
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            _check_finite(v, key)
+
+
+class _Sink:
+    """Appends each finished result to the results file, synced, as it arrives."""
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+        self._f = None
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._f = path.open("a", encoding="utf-8")
+
+    def put(self, key: Hashable, result: Any) -> None:
+        if self._f is None:
+            return
+        _check_finite(result, key)
+        self._f.write(json.dumps({"key": key, "result": result}, sort_keys=True, allow_nan=False) + "\n")
+        self._f.flush()
+        os.fsync(self._f.fileno())
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+
+
+def _bar(progress: bool, total: int, initial: int, desc: str):
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, desc=desc, unit="job", disable=not progress)
+
+
+def run_jobs(fn: Callable[..., Any], jobs: Iterable[tuple[Hashable, Sequence[Any]]], *, workers: int = 1,
+             scheduler: str | None = None, results: str | os.PathLike | None = None, progress: bool = True,
+             desc: str = "jobs") -> dict[Hashable, Any]:
+    """Run ``fn(*args)`` for every ``(key, args)`` of ``jobs``; return ``{key: result}`` in the jobs' order.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (the workers import it).
+    jobs : iterable of (key, args)
+        Distinct hashable keys with a JSON form (strings, numbers, tuples of them: a tuple is
+        saved as a JSON list and read back as the same key); ``args`` a tuple.
+    workers : int
+        Local processes (1: serial), or the size of a ``scheduler="local"`` Dask cluster.
+    scheduler : str, optional
+        ``"tcp://HOST:PORT"`` of a running Dask scheduler, ``"local"``, or None (default: the
+        ``DASK_SCHEDULER_ADDRESS`` environment variable, else no Dask).
+    results : path, optional
+        JSON-lines file of finished results (module docstring): appended as they arrive; jobs whose
+        key it holds are not run again.
+    progress : bool
+        A progress bar on stderr.
+    desc : str
+        The bar's label.
+
+    Raises
+    ------
+    JobsError
+        Bad settings, repeated keys, a results file that is not a file, a non-finite result to be
+        saved, or Dask missing for a scheduler.
+    """
+    kind = _executor(workers, scheduler)
+    jobs = [(k, tuple(a)) for k, a in jobs]
+    texts = [_key_text(k) for k, _ in jobs]
+    if len(set(texts)) != len(texts):
+        dup = sorted({t for t in texts if texts.count(t) > 1})
+        raise JobsError(f"job keys must be distinct; repeated: {', '.join(dup[:5])}")
+    path = Path(results) if results is not None else None
+    done = _load_done(path) if path is not None else {}
+    out: dict[str, Any] = {t: done[t] for t in texts if t in done}
+    todo = [(k, a) for (k, a), t in zip(jobs, texts) if t not in out]
+    sink = _Sink(path)
+    try:
+        with _bar(progress, len(jobs), len(out), desc) as bar:
+            if not todo:
+                pass
+            elif kind == "serial":
+                for k, a in todo:
+                    r = fn(*a)
+                    sink.put(k, r)
+                    out[_key_text(k)] = r
+                    bar.update()
+            elif kind == "processes":
+                # spawn, not fork: numba's OpenMP threads in this process make fork() unsafe
+                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
+                    pending = {ex.submit(fn, *a): k for k, a in todo}
+                    while pending:
+                        finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                        for fut in finished:
+                            k = pending.pop(fut)
+                            r = fut.result()
+                            sink.put(k, r)
+                            out[_key_text(k)] = r
+                            bar.update()
+            else:
+                _run_dask(fn, todo, kind, workers, sink, out, bar)
+    finally:
+        sink.close()
+    return {k: out[t] for (k, _), t in zip(jobs, texts)}
+
+
+def _run_dask(fn, todo, kind: str, workers: int, sink: _Sink, out: dict, bar) -> None:
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise JobsError("a Dask scheduler needs the optional extra: pip install \"ptw-assist[cluster]\"") from None
+    cluster = None
+    try:
+        if kind == "local":
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+            client = Client(cluster)
+        else:
+            try:
+                client = Client(kind, timeout="10s")
+            except OSError as exc:
+                raise JobsError(f"scheduler {kind}: cannot connect ({exc})") from None
+        with client:
+            futures = {client.submit(fn, *a, pure=False): k for k, a in todo}
+            for fut in as_completed(futures):
+                k = futures[fut]
+                r = fut.result()
+                sink.put(k, r)
+                out[_key_text(k)] = r
+                bar.update()
+    finally:
+        if cluster is not None:
+            cluster.close()
