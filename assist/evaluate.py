@@ -374,5 +374,152 @@ def aggregate(episodes: list[Episode]) -> dict[str, Any]:
     return out
 
 
+# ---------------------------------------------------------------------------
+# sweeps: many episodes on the execution layer (issue 22)
+# ---------------------------------------------------------------------------
+#: Columns of a sweep's table (``ptw-assist evaluate --table``), one row per episode.
+SWEEP_COLUMNS = ("controller", "scenario", "speed_kmh", "noise_pct", "seed", "effects", "roll_rmse_deg",
+                 "roll_max_deg", "torque_rms_nm", "torque_max_nm", "fell", "diverged", "end_reason", "phi_est_rmse_deg")
+#: Keys of a sweep file (JSON) and what each holds.
+SWEEP_KEYS = {"controllers": "names of CONTROLLERS", "scenarios": "scenario names",
+              "speeds_kmh": "cruise speeds [km/h] (null: the scenario's own)", "seeds": "seeds (integers >= 0)",
+              "effects": "effect sets, each a list of CAUSE:PARAM=VALUE texts ([] : none)",
+              "noise_pct": "sensor noise [% of range], one number"}
+
+
+def sweep_points(controllers: list[str], scenarios: list[str], speeds_kmh: list[float | None], seeds: list[int],
+                 effects: list[list[str]] | None = None, noise_pct: float | None = 5.0) -> list[dict[str, Any]]:
+    """Every combination (controllers x scenarios x speeds x effect sets x seeds) as a point of a sweep."""
+    effects = effects if effects else [[]]
+    bad = [c for c in controllers if c not in CONTROLLERS]
+    if bad:
+        raise EvaluationError(f"controllers: {bad} not in {CONTROLLERS}")
+    return [{"controller": c, "scenario": sc, "speed_kmh": v, "noise_pct": noise_pct, "seed": int(sd),
+             "effects": list(ef)}
+            for c in controllers for sc in scenarios for v in speeds_kmh for ef in effects for sd in seeds]
+
+
+def load_sweep_file(path: str) -> dict[str, Any]:
+    """A sweep file: a JSON object with the keys of :data:`SWEEP_KEYS` (any missing one takes the command
+    line's value). Raises :class:`EvaluationError` naming the file and the key for a bad one."""
+    import json
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            obj = json.load(f, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(f"{c} is not a number")))
+    except (OSError, ValueError) as exc:
+        raise EvaluationError(f"{path}: not a readable JSON sweep file ({exc})") from None
+    if not isinstance(obj, dict):
+        raise EvaluationError(f"{path}: a sweep file is a JSON object with keys {sorted(SWEEP_KEYS)}")
+    unknown = sorted(set(obj) - set(SWEEP_KEYS))
+    if unknown:
+        raise EvaluationError(f"{path}: unknown key(s) {unknown}; known: {sorted(SWEEP_KEYS)}")
+    for k, v in obj.items():
+        ok = (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0) \
+            if k == "noise_pct" else (isinstance(v, list) and len(v) > 0)
+        if k == "seeds" and ok:
+            ok = all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in v)
+        if k == "speeds_kmh" and ok:
+            ok = all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                                   and x > 0) for x in v)
+        if k == "effects" and ok:
+            ok = all(isinstance(e, list) and all(isinstance(t, str) for t in e) for e in v)
+        if k in ("controllers", "scenarios") and ok:
+            ok = all(isinstance(x, str) for x in v)
+        if not ok:
+            raise EvaluationError(f"{path}: key {k!r}: expected {SWEEP_KEYS[k]}, got {v!r}")
+    return obj
+
+
+def sweep_job(point: dict[str, Any], vehicle=None) -> dict[str, Any]:
+    """Job: one episode of a sweep point (:func:`run_episode`); its row of :data:`SWEEP_COLUMNS`
+    (JSON-serialisable; the seed is the point's, so the row is the same whichever worker runs it)."""
+    from ptw_env.effects import Effects
+
+    kw = {} if vehicle is None else {"vehicle": vehicle}
+    ep = run_episode(point["controller"], point["scenario"], speed_kmh=point["speed_kmh"],
+                     noise_pct=point["noise_pct"], seed=point["seed"], effects=Effects.parse(point["effects"]), **kw)
+    m = ep.metrics()
+    est = m["estimation_rmse"]
+    row = {k: m[k] for k in ("controller", "scenario", "speed_kmh", "noise_pct", "seed", "roll_rmse_deg",
+                             "roll_max_deg", "torque_rms_nm", "torque_max_nm", "fell", "diverged", "end_reason")}
+    row["effects"] = ";".join(point["effects"])
+    row["phi_est_rmse_deg"] = None if est is None else float(np.degrees(est["phi"]))
+    return row
+
+
+def run_sweep(points: list[dict[str, Any]], *, vehicle=None, workers: int = 1, scheduler: str | None = None,
+              results: str | None = None, progress: bool = True) -> list[dict[str, Any]]:
+    """Every point's episode on the execution layer (:func:`ptw_env.jobs.run_jobs`: serial, local processes or
+    Dask; ``results``: the JSON-lines file a rerun resumes from); the rows in the order of ``points``."""
+    from ptw_env.jobs import run_jobs
+
+    jobs = [((p["controller"], p["scenario"], p["speed_kmh"], ";".join(p["effects"]), p["seed"]), (p, vehicle))
+            for p in points]
+    done = run_jobs(sweep_job, jobs, workers=workers, scheduler=scheduler, results=results, progress=progress,
+                    desc="episodes")
+    return list(done.values())
+
+
+def sweep_table(rows: list[dict[str, Any]]) -> str:
+    """A sweep's rows as CSV text (:data:`SWEEP_COLUMNS`)."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=SWEEP_COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r[k] is None else r[k]) for k in SWEEP_COLUMNS})
+    return buf.getvalue()
+
+
+def sweep_summary(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per (controller, scenario, speed, effects): episodes, mean and max roll RMSE [deg], falls."""
+    groups: dict[tuple, list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["controller"], r["scenario"], r["speed_kmh"], r["effects"]), []).append(r)
+    out = []
+    for (c, sc, v, ef), rs in groups.items():
+        rm = [r["roll_rmse_deg"] for r in rs]
+        out.append({"controller": c, "scenario": sc, "speed_kmh": v, "effects": ef, "episodes": len(rs),
+                    "roll_rmse_deg_mean": float(np.mean(rm)), "roll_rmse_deg_max": float(np.max(rm)),
+                    "falls": int(sum(r["fell"] for r in rs)), "diverged": int(sum(r["diverged"] for r in rs))})
+    return out
+
+
+def plot_sweep(rows: list[dict[str, Any]], path) -> None:
+    """Roll-tracking RMSE per episode against the cruise speed, one panel per scenario, one colour per
+    controller (the mean over seeds as a line); falls marked with a cross."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scen = sorted({r["scenario"] for r in rows})
+    ctrls = sorted({r["controller"] for r in rows})
+    fig, axs = plt.subplots(1, len(scen), figsize=(5.5 * len(scen), 4.2), constrained_layout=True, squeeze=False)
+    for ax, sc in zip(axs[0], scen):
+        for i, c in enumerate(ctrls):
+            rs = [r for r in rows if r["scenario"] == sc and r["controller"] == c]
+            xs = [r["speed_kmh"] if r["speed_kmh"] is not None else 0.0 for r in rs]
+            ax.scatter(xs, [r["roll_rmse_deg"] for r in rs], s=12, color=f"C{i}", alpha=0.5,
+                       marker="o", label=c)
+            fx = [x for x, r in zip(xs, rs) if r["fell"]]
+            if fx:
+                ax.scatter(fx, [r["roll_rmse_deg"] for r in rs if r["fell"]], s=40, color=f"C{i}", marker="x")
+            means = sorted({x: float(np.mean([r["roll_rmse_deg"] for x2, r in zip(xs, rs) if x2 == x]))
+                            for x in set(xs)}.items())
+            if means:
+                ax.plot([m[0] for m in means], [m[1] for m in means], color=f"C{i}")
+        ax.set(title=sc, xlabel="cruise speed [km/h] (0: the scenario's own)", ylabel="roll RMSE [deg]")
+        ax.set_yscale("log")
+        ax.legend(fontsize=8)
+    fig.suptitle(f"sweep of {len(rows)} episodes (x: fell)")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 __all__ = ["CONTROLLERS", "Episode", "EvaluationError", "aggregate", "make_controller", "metrics_table",
-           "plot_episode", "run_episode", "gym"]
+           "plot_episode", "run_episode", "gym", "SWEEP_COLUMNS", "sweep_points", "load_sweep_file", "sweep_job",
+           "run_sweep", "sweep_table", "sweep_summary", "plot_sweep"]

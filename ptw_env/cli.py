@@ -226,19 +226,28 @@ SPEED_MS = number(0, 170, unit="m/s", lo_open=True)
 SPEED_KMH = number(0, 612, unit="km/h", lo_open=True)
 
 
-def speed_list(text: str) -> list[float]:
-    """``--speeds V1,V2,...``: comma-separated forward speeds [m/s], each in (0, 170]."""
-    vals = []
-    for s in text.split(","):
-        if s.strip():
-            try:
-                vals.append(SPEED_MS(s))
-            except argparse.ArgumentTypeError:
-                raise argparse.ArgumentTypeError(f"expected comma-separated speeds in m/s in (0, 170], e.g. "
-                                                 f"5,10,20,30; {s.strip()!r} of {text!r} is not one") from None
-    if not vals:
-        raise argparse.ArgumentTypeError(f"expected comma-separated speeds in m/s, e.g. 5,10,20,30; got {text!r}")
-    return vals
+def number_list(check: Callable[[str], float], what: str, example: str) -> Callable[[str], list[float]]:
+    """An argparse ``type`` for comma-separated numbers, each checked by ``check`` (a :func:`number`)."""
+    def parse(text: str) -> list[float]:
+        vals = []
+        for s in text.split(","):
+            if s.strip():
+                try:
+                    vals.append(check(s))
+                except argparse.ArgumentTypeError:
+                    raise argparse.ArgumentTypeError(f"expected comma-separated {what}, e.g. {example}; "
+                                                     f"{s.strip()!r} of {text!r} is not one") from None
+        if not vals:
+            raise argparse.ArgumentTypeError(f"expected comma-separated {what}, e.g. {example}; got {text!r}")
+        return vals
+
+    return parse
+
+
+#: ``--speeds V1,V2,...``: comma-separated forward speeds [m/s], each in (0, 170].
+speed_list = number_list(SPEED_MS, "speeds in m/s in (0, 170]", "5,10,20,30")
+#: ``--speeds KMH1,KMH2,...``: comma-separated cruise speeds [km/h], each in (0, 612].
+kmh_list = number_list(SPEED_KMH, "speeds in km/h in (0, 612]", "30,60,90")
 
 
 #: ``--seed``: a whole number for numpy's generators, 0 .. 2**63 - 1.

@@ -6,7 +6,8 @@ independent jobs. :func:`run_jobs` runs such a map on
 * ``serial``: one after the other in this process (``workers=1``, no scheduler);
 * local processes (``workers=N``, the default executor; no extra dependency):
   :class:`concurrent.futures.ProcessPoolExecutor`, started by ``spawn`` (a ``fork`` of a process
-  whose numba kernels have started OpenMP threads is unsafe and is killed);
+  whose numba kernels have started OpenMP threads is unsafe and is killed), one BLAS/OpenMP/numba
+  thread per worker process (as Dask's workers);
 * a Dask cluster (``scheduler="tcp://HOST:PORT"``, or the ``DASK_SCHEDULER_ADDRESS`` environment
   variable): :class:`distributed.Client` on that scheduler; ``scheduler="local"`` starts a
   :class:`distributed.LocalCluster` of ``workers`` processes on this machine. Dask is the optional
@@ -34,7 +35,9 @@ function, not a lambda), as for any process pool.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 import math
 import multiprocessing
 import os
@@ -61,6 +64,11 @@ def _executor(workers: int, scheduler: str | None) -> str:
             raise JobsError(f"scheduler must be 'local' or an address such as tcp://HOST:PORT, got {scheduler!r}")
         return scheduler
     return "serial" if workers == 1 else "processes"
+
+
+def echo(x: Any) -> Any:
+    """The trivial job (returns its argument): what ``scripts/bench_jobs.py`` measures the per-job overhead with."""
+    return x
 
 
 def executor_name(workers: int = 1, scheduler: str | None = None) -> str:
@@ -183,8 +191,11 @@ def run_jobs(fn: Callable[..., Any], jobs: Iterable[tuple[Hashable, Sequence[Any
                     out[_key_text(k)] = r
                     bar.update()
             elif kind == "processes":
-                # spawn, not fork: numba's OpenMP threads in this process make fork() unsafe
-                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
+                # spawn, not fork: numba's OpenMP threads in this process make fork() unsafe; one thread
+                # per worker process, as Dask's nanny sets it (N processes x N BLAS/numba threads on N cores
+                # made a 200-episode sweep 2.9x slower than serial on 2 cores, scripts/bench_jobs.py)
+                with _single_threaded_children(), \
+                        ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
                     pending = {ex.submit(fn, *a): k for k, a in todo}
                     while pending:
                         finished, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -201,6 +212,25 @@ def run_jobs(fn: Callable[..., Any], jobs: Iterable[tuple[Hashable, Sequence[Any
     return {k: out[t] for (k, _), t in zip(jobs, texts)}
 
 
+#: Thread-count variables set to 1 for the spawned worker processes (Dask's nanny sets the same).
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _single_threaded_children():
+    """While active, processes started from this one inherit one thread each for BLAS, OpenMP and numba."""
+    saved = {k: os.environ.get(k) for k in THREAD_VARS}
+    os.environ.update({k: "1" for k in THREAD_VARS})
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def _run_dask(fn, todo, kind: str, workers: int, sink: _Sink, out: dict, bar) -> None:
     try:
         from distributed import Client, LocalCluster, as_completed
@@ -209,7 +239,9 @@ def _run_dask(fn, todo, kind: str, workers: int, sink: _Sink, out: dict, bar) ->
     cluster = None
     try:
         if kind == "local":
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                                   env={k: "1" for k in THREAD_VARS},  # one thread per worker, numba's too
+                                   silence_logs=logging.CRITICAL)  # no worker log lines (a heartbeat at shutdown)
             client = Client(cluster)
         else:
             try:
@@ -217,7 +249,12 @@ def _run_dask(fn, todo, kind: str, workers: int, sink: _Sink, out: dict, bar) ->
             except OSError as exc:
                 raise JobsError(f"scheduler {kind}: cannot connect ({exc})") from None
         with client:
-            futures = {client.submit(fn, *a, pure=False): k for k, a in todo}
+            keys = [k for k, _ in todo]
+            if len({len(a) for _, a in todo}) == 1 and todo[0][1]:  # one call for all: less per-job overhead
+                futs = client.map(fn, *zip(*(a for _, a in todo)), pure=False)
+            else:
+                futs = [client.submit(fn, *a, pure=False) for _, a in todo]
+            futures = dict(zip(futs, keys))
             for fut in as_completed(futures):
                 k = futures[fut]
                 r = fut.result()

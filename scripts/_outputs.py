@@ -52,3 +52,15 @@ def shared_data(sub: str) -> Path:
         if c and (Path(c) / "data" / sub).is_dir():
             return Path(c) / "data" / sub
     raise SystemExit(f"shared/data/{sub} not found; pass --data or set PTW_SHARED_DIR")
+
+
+def local_executors(workers: int) -> list[tuple[str, dict]]:
+    """The executors of :func:`ptw_env.jobs.run_jobs` a benchmark compares on this machine: serial, ``workers``
+    local processes, and a Dask LocalCluster of ``workers`` when the ``[cluster]`` extra is installed."""
+    out = [("serial", dict(workers=1)), (f"{workers} local processes", dict(workers=workers))]
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        print("(Dask rows skipped: pip install \"ptw-assist[cluster]\")")
+        return out
+    return out + [(f"Dask LocalCluster, {workers} workers", dict(workers=workers, scheduler="local"))]

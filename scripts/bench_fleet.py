@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _outputs import shared_data  # scripts/_outputs.py (python scripts/NAME.py puts scripts/ on sys.path)
+from _outputs import local_executors, shared_data  # scripts/_outputs.py (python scripts/NAME.py puts scripts/ on sys.path)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,14 +34,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from assist.diagnose.fleet import diagnose_fleet
 
-    try:
-        import distributed  # noqa: F401
-        have_dask = True
-    except ImportError:
-        have_dask = False
-    runs = [("serial", dict(workers=1)), (f"{a.workers} local processes", dict(workers=a.workers))]
-    if have_dask:
-        runs.append((f"Dask LocalCluster, {a.workers} workers", dict(workers=a.workers, scheduler="local")))
+    runs = local_executors(a.workers)
     diagnose_fleet(paths[:1], tempfile.mkdtemp(), figures=False, progress=False)  # numba's cache, not timed
     ref = rows_ref = None
     print(f"{len(paths)} logs of {data} (diagnose, figures off)")
@@ -53,8 +46,6 @@ def main(argv: list[str] | None = None) -> int:
             ref, rows_ref = sec, rows
         same = "identical verdicts" if rows == rows_ref else "DIFFERENT verdicts"
         print(f"  {name:<34} {sec:7.1f} s   {sec / ref:5.2f}x serial   {same}")
-    if not have_dask:
-        print("  (Dask row skipped: pip install \"ptw-assist[cluster]\")")
     return 0
 
 

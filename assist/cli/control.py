@@ -21,6 +21,8 @@ from ptw_env.cli import (
     command,
     effect_arg,
     emit,
+    kmh_list,
+    number,
 )
 
 DEFAULT_DEMO = {"scenario": "double_lane_change", "noise": 5.0, "seed": 0}
@@ -136,10 +138,30 @@ def _episode(a: argparse.Namespace, controller: str):
 )
 def _build_evaluate(p: argparse.ArgumentParser):
     _add_episode_args(p)
+    g = p.add_argument_group("sweep form (any of these: many episodes on the execution layer, one table)")
+    g.add_argument("--sweep", default=None, metavar="SWEEP.json",
+                   help="a sweep file: JSON with controllers, scenarios, speeds_kmh, seeds, effects (a list of "
+                        "effect sets), noise_pct; a key left out takes the options' value")
+    g.add_argument("--controllers", type=_name_list, default=None, metavar="C1,C2", help="controllers to sweep")
+    g.add_argument("--scenarios", type=_name_list, default=None, metavar="S1,S2", help="scenarios to sweep")
+    g.add_argument("--speeds", type=kmh_list, default=None, metavar="KMH,...", help="cruise speeds to sweep [km/h]")
+    g.add_argument("--seeds", type=_SEEDS, default=None, metavar="N", help="N seeds from --seed on")
+    g.add_argument("--table", default=None, metavar="OUT.csv", help="the sweep's table, one row per episode (required)")
+    g.add_argument("--workers", type=_WORKERS, default=1, metavar="N",
+                   help="episodes at once in local processes (default 1), or the size of a local Dask cluster")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a Dask scheduler, tcp://HOST:PORT, or 'local' (default: DASK_SCHEDULER_ADDRESS if set)")
+    g.add_argument("--resume", action="store_true",
+                   help="keep the episodes a previous run of this --table finished (OUT.csv.jobs.jsonl)")
 
     def run(a: argparse.Namespace) -> int:
         from assist.evaluate import metrics_table, plot_episode
 
+        if any(getattr(a, k) is not None for k in ("sweep", "controllers", "scenarios", "speeds", "seeds")):
+            return _sweep(a)
+        if a.table or a.resume or a.workers != 1 or a.scheduler:
+            raise CLIError("--table, --resume, --workers and --scheduler belong to the sweep form "
+                           "(give --sweep, --controllers, --scenarios, --speeds or --seeds)")
         check_outputs(a, "plot", "json")
         ep = _episode(a, a.controller)
         m = ep.metrics()
@@ -152,6 +174,87 @@ def _build_evaluate(p: argparse.ArgumentParser):
         return 0
 
     return run
+
+
+_SEEDS = number(1, 1_000_000, integer=True)
+_WORKERS = number(1, 256, integer=True)
+
+
+def _name_list(text: str) -> list[str]:
+    out = [t.strip() for t in text.split(",") if t.strip()]
+    if not out:
+        raise argparse.ArgumentTypeError(f"expected comma-separated names, got {text!r}")
+    return out
+
+
+def _sweep(a: argparse.Namespace) -> int:
+    """``evaluate``'s sweep form: controllers x scenarios x speeds x effect sets x seeds on the execution layer."""
+    from pathlib import Path
+
+    from ptw_env.jobs import JobsError, executor_name
+    from ptw_env.outputs import atomic_write_text
+    from ptw_env.scenarios import scenario_names
+
+    from assist.evaluate import (EvaluationError, load_sweep_file, plot_sweep, run_sweep, sweep_points,
+                                 sweep_summary, sweep_table)
+
+    if a.table is None:
+        raise CLIError("the sweep form writes its table: give --table OUT.csv")
+    if getattr(a, "policy", None) is not None:
+        raise CLIError("--policy is for one episode; a sweep of rl uses the shipped policy")
+    try:
+        spec = load_sweep_file(a.sweep) if a.sweep else {}
+    except EvaluationError as exc:
+        raise CLIError(f"--sweep: {exc}") from None
+    controllers = spec.get("controllers", a.controllers or [a.controller])
+    scenarios = spec.get("scenarios", a.scenarios or [a.scenario])
+    speeds = spec.get("speeds_kmh", a.speeds or [a.speed])
+    seeds = spec.get("seeds", list(range(a.seed, a.seed + (a.seeds or 1))))
+    effects = spec.get("effects", [list(a.effect)])
+    noise = spec.get("noise_pct", a.noise)
+    known = set(scenario_names())
+    for name in scenarios:
+        if name not in known:
+            raise CLIError(f"scenario {name!r} is not one of {sorted(known)}")
+    for ef in effects:
+        for t in ef:
+            effect_arg(t)  # checked against effects.md here, not in a worker
+    try:
+        points = sweep_points(controllers, scenarios, speeds, seeds, effects, noise)
+        where = executor_name(a.workers, a.scheduler)
+    except (EvaluationError, JobsError) as exc:
+        raise CLIError(str(exc)) from None
+    v = chosen_vehicle(a)
+    for sp in speeds:
+        if sp is not None:
+            check_speeds_in_vehicle([sp / 3.6], v, "--speeds")
+    jobs_file = Path(str(a.table) + ".jobs.jsonl")
+    if a.resume:
+        if not jobs_file.exists():
+            raise CLIError(f"--resume: no previous run of {a.table} ({jobs_file} is missing)")
+        a.overwrite = True
+    elif jobs_file.exists():
+        if not a.overwrite:
+            raise CLIError(f"--table: {jobs_file} holds a previous run; pass --resume to continue it or --overwrite")
+        jobs_file.unlink()
+    check_outputs(a, "table", "plot", "json")
+    print(f"vehicle: {v.name}; {len(points)} episodes ({len(controllers)} controllers x {len(scenarios)} scenarios "
+          f"x {len(speeds)} speeds x {len(effects)} effect sets x {len(seeds)} seeds); executor: {where}")
+    try:
+        rows = run_sweep(points, vehicle=v, workers=a.workers, scheduler=a.scheduler, results=str(jobs_file))
+    except JobsError as exc:
+        raise CLIError(str(exc)) from None
+    atomic_write_text(a.table, sweep_table(rows))
+    summ = sweep_summary(rows)
+    for r in summ:
+        sp = "-" if r["speed_kmh"] is None else f"{r['speed_kmh']:g} km/h"
+        print(f"  {r['controller']:>8} {r['scenario']:<20} {sp:>10} {r['effects'] or 'nominal':<28} "
+              f"roll RMSE {r['roll_rmse_deg_mean']:.3f} deg (max {r['roll_rmse_deg_max']:.3f}) over "
+              f"{r['episodes']} episodes, falls {r['falls']}")
+    print(f"table written to {a.table}")
+    obj = {"summary": summ, "rows": rows, "executor": where, "vehicle": v.identity()} if a.json else None
+    emit(a, obj, {"plot": lambda f: plot_sweep(rows, f)})
+    return 0
 
 
 @command(
