@@ -52,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
         same = "identical rows" if rows == rows_ref else "DIFFERENT rows"
         print(f"  {name:<30} {sec:7.1f} s  {sec / ref:5.2f}x serial  {1000 * sec / len(points):6.1f} ms/episode  {same}")
     per_episode = ref / len(points)
+    dask_slope = None
 
     print(f"per-job overhead: trivial jobs, {a.trivial} and {3 * a.trivial}; the slope is the cost of one more job, "
           f"the intercept the executor's start-up")
@@ -67,10 +68,15 @@ def main(argv: list[str] | None = None) -> int:
             start = secs[0] - slope * a.trivial
             label = "with the results file" if res else "no results file"
             print(f"  {name:<30} {label:<22} {1000 * slope:6.3f} ms/job, start-up {start:5.2f} s")
+            if res and "scheduler" in kw:
+                dask_slope = slope
     workers = 100
     hours = 1_000_000 * per_episode / workers / 3600
     print(f"projection (not measured): 1 M episodes at the measured {1000 * per_episode:.0f} ms each on {workers} "
-          f"workers like these cores: {hours:.1f} h, plus the per-job overhead above")
+          f"workers like these cores: {hours:.1f} h of computing")
+    if dask_slope is not None:  # the per-job overhead is spent in one client and one scheduler: it does not divide
+        print(f"  and at least 1 M x {1000 * dask_slope:.1f} ms = {1e6 * dask_slope / 3600:.1f} h in the Dask client "
+              f"and scheduler with one episode per job ({1e5 * dask_slope / 3600:.2f} h with ten per job)")
     return 0
 
 

@@ -14,7 +14,7 @@ simulated ``shared/data/friction_urban.csv``:
 
 Usage::
 
-    python scripts/eval_adaptive.py [OUT_DIR] [--quick] [--seeds 1]
+    python scripts/eval_adaptive.py [OUT_DIR] [--quick] [--seeds 1] [--workers N | --scheduler ADDRESS]
 
 writes ``results.json``, ``tables.md`` and figures under ``OUT_DIR``
 (default ``out/adaptive/``). A full run takes a few minutes on one core.
@@ -39,6 +39,7 @@ from assist.estimation.adaptive_observer import AdaptiveObserver, adaptation_gai
 from assist.estimation.identifiability import ride_information  # noqa: E402
 from assist.estimation.identification import JointEKF, estimate, simulate_friction_drop  # noqa: E402
 from assist.estimation.lpv_model import THETA_NAMES, build_lpv_model, observability_table  # noqa: E402
+from ptw_env.jobs import JobsError, run_jobs  # noqa: E402
 from ptw_env.logs import read_log  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
 from ptw_env.sensors import SensorConfig  # noqa: E402
@@ -149,6 +150,19 @@ def run_case(scenario: str, var: str, pct: float, seed: int, observers: dict[str
             "duration_s": float(t[-1]), "t_ride_s": t_ride, "crb": crb, "methods": res}
 
 
+_OBSERVERS: dict = {}  # the adaptive observers of this process (a worker designs them once)
+
+
+def _case_job(scenario: str, var: str, pct: float, seed: int) -> dict:
+    """One case on the execution layer: everything it needs is in its arguments (the observers are designed in
+    the process that runs it, once)."""
+    if not _OBSERVERS:
+        design, kdesign = default_design(), kalman_design()
+        _OBSERVERS.update({k: AdaptiveObserver(design if g == "theorem2" else kdesign, parametrisation=p)
+                           for k, (g, p) in ADAPTIVE.items()})
+    return run_case(scenario, var, pct, seed, _OBSERVERS)
+
+
 def fmt_pct(v) -> str:
     return "-" if v is None else f"{100 * v:+.1f}"
 
@@ -234,6 +248,10 @@ def main(argv=None) -> int:
     ap.add_argument("out", nargs="?", default="out/adaptive", help="output directory (default out/adaptive/)")
     ap.add_argument("--quick", action="store_true", help="handling only, noise 5 %%, three variations")
     ap.add_argument("--seeds", type=int, default=1, help="seeds per case (default 1)")
+    ap.add_argument("--workers", type=int, default=1, help="local processes (default 1), or the size of a local "
+                                                         "Dask cluster with --scheduler local")
+    ap.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="a Dask scheduler tcp://HOST:PORT or 'local' (ptw_env.jobs; the [cluster] extra)")
     add_overwrite(ap)
     a = ap.parse_args(argv)
     out = output_dir(ap, a.out, a.overwrite)
@@ -243,20 +261,20 @@ def main(argv=None) -> int:
     observers = {k: AdaptiveObserver(design if g == "theorem2" else kdesign, parametrisation=p)
                  for k, (g, p) in ADAPTIVE.items()}
     obs = observers["adaptive"]
+    _OBSERVERS.update(observers)  # serial runs use these; a spawned or Dask worker designs its own (the same)
     scenarios = ("handling",) if a.quick else ("handling", "urban")
     noises = (5.0,) if a.quick else (0.0, 5.0, 10.0)
     variations = ("nominal", "friction 0.6", "M+50") if a.quick else tuple(VARIATIONS)
-    cases = []
-    for sc in scenarios:
-        for pct in noises:
-            for var in variations:
-                for seed in range(1, a.seeds + 1):
-                    c = run_case(sc, var, pct, seed, observers)
-                    cases.append(c)
-                    errs = " ".join(f"{m}:{max(abs(e) for e in c['methods'][m]['rel_error']) * 100:5.1f}%"
-                                    for m in METHODS)
-                    print(f"{sc:9s} {var:13s} noise {pct:4.1f}% seed {seed}: worst final-third error {errs}",
-                          flush=True)
+    jobs = [((sc, var, pct, seed), (sc, var, pct, seed)) for sc in scenarios for pct in noises for var in variations
+            for seed in range(1, a.seeds + 1)]
+    try:  # the execution layer: serial, local processes (--workers) or a Dask cluster (--scheduler)
+        cases = list(run_jobs(_case_job, jobs, workers=a.workers, scheduler=a.scheduler, desc="cases").values())
+    except JobsError as e:
+        ap.error(str(e))
+    for c in cases:
+        errs = " ".join(f"{m}:{max(abs(e) for e in c['methods'][m]['rel_error']) * 100:5.1f}%" for m in METHODS)
+        print(f"{c['scenario']:9s} {c['variation']:13s} noise {c['noise_pct']:4.1f}% seed {c['seed']}: worst "
+              f"final-third error {errs}", flush=True)
 
     # cross-check on the independent log
     log = read_log(ROOT.parent / "shared" / "data" / "friction_urban.csv") if (
