@@ -391,12 +391,23 @@ def sweep_points(controllers: list[str], scenarios: list[str], speeds_kmh: list[
                  effects: list[list[str]] | None = None, noise_pct: float | None = 5.0) -> list[dict[str, Any]]:
     """Every combination (controllers x scenarios x speeds x effect sets x seeds) as a point of a sweep."""
     effects = effects if effects else [[]]
+    for name, vals in (("controllers", controllers), ("scenarios", scenarios), ("speeds", speeds_kmh),
+                       ("seeds", seeds), ("effect sets", effects)):
+        texts = [repr(v) for v in vals]
+        twice = sorted({t for t in texts if texts.count(t) > 1})
+        if twice:
+            raise EvaluationError(f"{name}: {', '.join(twice)} given twice (each episode runs once)")
     bad = [c for c in controllers if c not in CONTROLLERS]
     if bad:
         raise EvaluationError(f"controllers: {bad} not in {CONTROLLERS}")
     return [{"controller": c, "scenario": sc, "speed_kmh": v, "noise_pct": noise_pct, "seed": int(sd),
              "effects": list(ef)}
             for c in controllers for sc in scenarios for v in speeds_kmh for ef in effects for sd in seeds]
+
+
+def _not_a_number(text: str) -> float:
+    """``json.load``'s hook for ``NaN``/``Infinity``, which strict JSON does not have."""
+    raise ValueError(f"{text} is not a number (strict JSON)")
 
 
 def load_sweep_file(path: str) -> dict[str, Any]:
@@ -406,7 +417,7 @@ def load_sweep_file(path: str) -> dict[str, Any]:
 
     try:
         with open(path, encoding="utf-8") as f:
-            obj = json.load(f, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(f"{c} is not a number")))
+            obj = json.load(f, parse_constant=_not_a_number)
     except (OSError, ValueError) as exc:
         raise EvaluationError(f"{path}: not a readable JSON sweep file ({exc})") from None
     if not isinstance(obj, dict):
@@ -445,7 +456,8 @@ def sweep_job(point: dict[str, Any], vehicle=None) -> dict[str, Any]:
                              "roll_max_deg", "torque_rms_nm", "torque_max_nm", "fell", "diverged", "end_reason")}
     row["effects"] = ";".join(point["effects"])
     row["phi_est_rmse_deg"] = None if est is None else float(np.degrees(est["phi"]))
-    return row
+    # an episode that diverged at its first step has no finite figure: null, and "diverged" says why
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}
 
 
 def run_sweep(points: list[dict[str, Any]], *, vehicle=None, workers: int = 1, scheduler: str | None = None,

@@ -250,6 +250,22 @@ speed_list = number_list(SPEED_MS, "speeds in m/s in (0, 170]", "5,10,20,30")
 kmh_list = number_list(SPEED_KMH, "speeds in km/h in (0, 612]", "30,60,90")
 
 
+#: ``--workers``: local processes, or the size of a local Dask cluster (:mod:`ptw_env.jobs`).
+WORKERS = number(1, 256, integer=True)
+
+
+def add_executor_options(p: Any, what: str, resume: str) -> None:
+    """``--workers``, ``--scheduler`` and ``--resume`` of a command that runs many jobs (cli.md; the
+    execution layer :mod:`ptw_env.jobs`). ``what``: what runs at once; ``resume``: the help of ``--resume``."""
+    p.add_argument("--workers", type=WORKERS, default=1, metavar="N",
+                   help=f"{what} at once in local processes (default 1), or the size of a local Dask cluster "
+                        "with --scheduler local")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a Dask scheduler, tcp://HOST:PORT, or 'local' (default: DASK_SCHEDULER_ADDRESS if set; "
+                        "needs the [cluster] extra)")
+    p.add_argument("--resume", action="store_true", help=resume)
+
+
 #: ``--seed``: a whole number for numpy's generators, 0 .. 2**63 - 1.
 SEED = number(0, 2**63 - 1, integer=True)
 #: ``--noise``: sensor noise in percent of each channel's range.

@@ -38,7 +38,6 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import math
 import multiprocessing
 import os
 from collections.abc import Callable, Hashable, Iterable, Sequence
@@ -95,18 +94,8 @@ def _load_done(path: Path) -> dict[str, Any]:
 
 
 def _key_text(key: Hashable) -> str:
-    return json.dumps(key, sort_keys=True) if not isinstance(key, str) else key
-
-
-def _check_finite(obj: Any, key: Hashable) -> None:
-    if isinstance(obj, float) and not math.isfinite(obj):
-        raise JobsError(f"job {key!r}: its result holds {obj}; results files are strict JSON (say what diverged instead)")
-    if isinstance(obj, dict):
-        for v in obj.values():
-            _check_finite(v, key)
-    elif isinstance(obj, (list, tuple)):
-        for v in obj:
-            _check_finite(v, key)
+    """The key's JSON text: what a results file holds, and what tells two keys apart (1 and "1" differ)."""
+    return json.dumps(key, sort_keys=True)
 
 
 class _Sink:
@@ -122,8 +111,12 @@ class _Sink:
     def put(self, key: Hashable, result: Any) -> None:
         if self._f is None:
             return
-        _check_finite(result, key)
-        self._f.write(json.dumps({"key": key, "result": result}, sort_keys=True, allow_nan=False) + "\n")
+        try:
+            line = json.dumps({"key": key, "result": result}, sort_keys=True, allow_nan=False)
+        except (TypeError, ValueError) as exc:  # NaN/inf, or not JSON at all
+            raise JobsError(f"job {key!r}: its result cannot go to the results file, which is strict JSON ({exc}); "
+                            "return finite numbers (say what diverged instead)") from None
+        self._f.write(line + "\n")
         self._f.flush()
         os.fsync(self._f.fileno())
 
@@ -180,6 +173,7 @@ def run_jobs(fn: Callable[..., Any], jobs: Iterable[tuple[Hashable, Sequence[Any
     out: dict[str, Any] = {t: done[t] for t in texts if t in done}
     todo = [(k, a) for (k, a), t in zip(jobs, texts) if t not in out]
     sink = _Sink(path)
+    dask = _connect(kind, workers) if todo and kind not in ("serial", "processes") else None
     try:
         with _bar(progress, len(jobs), len(out), desc) as bar:
             if not todo:
@@ -193,22 +187,30 @@ def run_jobs(fn: Callable[..., Any], jobs: Iterable[tuple[Hashable, Sequence[Any
             elif kind == "processes":
                 # spawn, not fork: numba's OpenMP threads in this process make fork() unsafe; one thread
                 # per worker process, as Dask's nanny sets it (N processes x N BLAS/numba threads on N cores
-                # made a 200-episode sweep 2.9x slower than serial on 2 cores, scripts/bench_jobs.py)
+                # oversubscribe them)
                 with _single_threaded_children(), \
                         ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as ex:
                     pending = {ex.submit(fn, *a): k for k, a in todo}
-                    while pending:
-                        finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                        for fut in finished:
-                            k = pending.pop(fut)
-                            r = fut.result()
-                            sink.put(k, r)
-                            out[_key_text(k)] = r
-                            bar.update()
+                    try:
+                        while pending:
+                            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                            for fut in finished:
+                                k = pending.pop(fut)
+                                r = fut.result()  # a job's error is raised here, as in a serial run
+                                sink.put(k, r)
+                                out[_key_text(k)] = r
+                                bar.update()
+                    except BaseException:
+                        ex.shutdown(wait=True, cancel_futures=True)  # the others: not started, not waited for
+                        raise
             else:
-                _run_dask(fn, todo, kind, workers, sink, out, bar)
+                _run_dask(fn, todo, dask[0], sink, out, bar)
     finally:
         sink.close()
+        if dask is not None:
+            dask[0].close()
+            if dask[1] is not None:
+                dask[1].close()
     return {k: out[t] for (k, _), t in zip(jobs, texts)}
 
 
@@ -231,36 +233,36 @@ def _single_threaded_children():
                 os.environ[k] = v
 
 
-def _run_dask(fn, todo, kind: str, workers: int, sink: _Sink, out: dict, bar) -> None:
+def _connect(kind: str, workers: int):
+    """``(client, cluster)``: a Dask client on the scheduler ``kind`` (``"local"``: on a new LocalCluster of
+    ``workers`` single-threaded processes, returned to be closed after the client)."""
     try:
-        from distributed import Client, LocalCluster, as_completed
+        from distributed import Client, LocalCluster
     except ImportError:
         raise JobsError("a Dask scheduler needs the optional extra: pip install \"ptw-assist[cluster]\"") from None
-    cluster = None
+    if kind == "local":
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                               env={k: "1" for k in THREAD_VARS},  # one thread per worker, numba's too
+                               silence_logs=logging.CRITICAL)  # no worker log lines (a heartbeat at shutdown)
+        return Client(cluster), cluster
     try:
-        if kind == "local":
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                                   env={k: "1" for k in THREAD_VARS},  # one thread per worker, numba's too
-                                   silence_logs=logging.CRITICAL)  # no worker log lines (a heartbeat at shutdown)
-            client = Client(cluster)
-        else:
-            try:
-                client = Client(kind, timeout="10s")
-            except OSError as exc:
-                raise JobsError(f"scheduler {kind}: cannot connect ({exc})") from None
-        with client:
-            keys = [k for k, _ in todo]
-            if len({len(a) for _, a in todo}) == 1 and todo[0][1]:  # one call for all: less per-job overhead
-                futs = client.map(fn, *zip(*(a for _, a in todo)), pure=False)
-            else:
-                futs = [client.submit(fn, *a, pure=False) for _, a in todo]
-            futures = dict(zip(futs, keys))
-            for fut in as_completed(futures):
-                k = futures[fut]
-                r = fut.result()
-                sink.put(k, r)
-                out[_key_text(k)] = r
-                bar.update()
-    finally:
-        if cluster is not None:
-            cluster.close()
+        return Client(kind, timeout="10s"), None
+    except OSError as exc:
+        raise JobsError(f"scheduler {kind}: cannot connect ({exc})") from None
+
+
+def _run_dask(fn, todo, client, sink: _Sink, out: dict, bar) -> None:
+    from distributed import as_completed
+
+    keys = [k for k, _ in todo]
+    if len({len(a) for _, a in todo}) == 1 and todo[0][1]:  # one call for all: less per-job overhead
+        futs = client.map(fn, *zip(*(a for _, a in todo)), pure=False)
+    else:
+        futs = [client.submit(fn, *a, pure=False) for _, a in todo]
+    futures = dict(zip(futs, keys))
+    for fut in as_completed(futures):
+        k = futures[fut]
+        r = fut.result()
+        sink.put(k, r)
+        out[_key_text(k)] = r
+        bar.update()

@@ -173,7 +173,10 @@ class KalmanRun:
         self.t, self.x_hat, self._tau = t, x_hat, tau_hat
 
     def unknown(self, name: str) -> np.ndarray:
-        return np.sin(self.x_hat[:, 0]) if name == "phi" else self._tau  # zeta_phi is sin(phi), as the UIHOSMO's
+        """The torque estimate (the roll angle is ``x_hat[:, 0]``, read by :func:`errors` as for the UIHOSMO)."""
+        if name != "tau":
+            raise KeyError(name)
+        return self._tau
 
 
 def kalman_reference(ride, torque_walk: float, state_walk: float, outputs=("delta", "r"),
@@ -221,7 +224,12 @@ def kalman_reference(ride, torque_walk: float, state_walk: float, outputs=("delt
     return KalmanRun(c["t"], X[:, :n], X[:, n])
 
 
-def tune_kalman_reference(train, grid_tau=(3, 10, 30, 100, 300, 1000), grid_state=(0.0, 0.01, 0.03)) -> tuple:
+#: Random-walk intensities the Kalman yardstick is tuned over: torque [N m/sqrt(s)], states [unit/sqrt(s)].
+KALMAN_TORQUE_WALKS = (3, 10, 30, 100, 300, 1000)
+KALMAN_STATE_WALKS = (0.0, 0.01, 0.03)
+
+
+def tune_kalman_reference(train, grid_tau=KALMAN_TORQUE_WALKS, grid_state=KALMAN_STATE_WALKS) -> tuple:
     """Grid search of the random-walk intensities on a training ride, cost phi/1 deg + tau/3 N m (issue 15's targets)."""
     best = None
     for qt in grid_tau:
@@ -440,7 +448,7 @@ def main(argv=None) -> int:
     res["train_kalman_pair"] = errors(kalman_reference(train_kf, qt, qx), train_kf)  # the ride pair_grid is run on
     # how low the torque error goes if the intensities are chosen on the evaluation ride itself (an oracle)
     oracle = min((errors(kalman_reference(rides["dlc100"], a, b), rides["dlc100"])["tau_rmse_nm"], a, b)
-                 for a in (3, 10, 30, 100, 300, 1000) for b in (0.0, 0.01, 0.03))
+                 for a in KALMAN_TORQUE_WALKS for b in KALMAN_STATE_WALKS)
     M["kalman_pair"] = {"outputs": ["delta", "r"], "train_seed": args.train_seed, "torque_walk_nm_per_sqrt_s": qt,
                         "state_walk_per_sqrt_s": qx, "note": "random-walk torque, noise statistics known (not like for like)",
                         "oracle_tau_rmse_nm": oracle[0], "oracle_walks": [oracle[1], oracle[2]]}

@@ -20,3 +20,10 @@ def slow_square(x: int, delay_s: float) -> int:
     """``x * x`` after ``delay_s`` seconds (a job long enough to kill a worker under it)."""
     time.sleep(delay_s)
     return x * x
+
+
+def fail_on(x: int, bad: int) -> int:
+    """``x`` itself, except that ``x == bad`` raises ``ValueError`` (a job that fails on a worker)."""
+    if x == bad:
+        raise ValueError(f"job {x} failed")
+    return x

@@ -89,6 +89,20 @@ def test_a_rerun_resumes_and_diagnoses_only_the_new_log(logs, tmp_path, capsys):
     assert (out / "payload.json").exists()
 
 
+def test_a_log_too_short_to_diagnose_stops_the_fleet_before_any_work(logs, tmp_path, capsys):
+    d = tmp_path / "logs"
+    d.mkdir()
+    for name in ("bank", "clean"):
+        for suffix in (".csv", ".json"):
+            (d / f"{name}{suffix}").write_bytes((logs / f"{name}{suffix}").read_bytes())
+    text = (logs / "clean.csv").read_text().splitlines()
+    (d / "short.csv").write_text("\n".join(text[:200]) + "\n")  # 2 s of the clean ride
+    assert _run([str(d), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "short.csv" in err and "replay window" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()  # refused before any diagnosis: nothing written
+
+
 def test_bad_fleets_are_refused(logs, tmp_path, capsys):
     other = tmp_path / "other"
     other.mkdir()

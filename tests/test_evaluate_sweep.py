@@ -100,6 +100,9 @@ def test_bad_sweeps_are_refused(tmp_path, capsys):
         (["--speeds", "40,-3", "--table", str(tmp_path / "e.csv")], "--speeds"),
         (["--table", str(tmp_path / "f.csv")], "sweep form"),
         (["--seeds", "2", "--table", str(tmp_path / "g.csv"), "--resume"], "--resume"),
+        (["--speeds", "50,50", "--table", str(tmp_path / "h.csv")], "50.0 given twice"),
+        (["--scenarios", "urban", "--speeds", "50", "--table", str(tmp_path / "i.csv")], "no cruise speed"),
+        (["--seeds", "2", "--table", str(tmp_path / "j.csv"), "--json", str(tmp_path / "j.csv")], "--table"),
     ]
     for args, msg in cases:
         assert _run(args) == 2, args

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from jobs_helpers import short_ride, slow_square
+from jobs_helpers import fail_on, short_ride, slow_square
 from ptw_env.jobs import JobsError, executor_name, run_jobs
 
 HERE = Path(__file__).resolve().parent
@@ -145,3 +145,18 @@ def test_bad_settings_are_refused(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if the extra were not installed
     with pytest.raises(JobsError, match=r"ptw-assist\[cluster\]"):
         run_jobs(pow, [("a", (1, 2))], scheduler="local", progress=False)
+
+
+def test_a_failing_job_raises_its_error_and_keeps_the_finished_ones(tmp_path):
+    res = tmp_path / "r.jsonl"
+    with pytest.raises(ValueError, match="job 5 failed"):
+        run_jobs(fail_on, [(i, (i, 5)) for i in range(6)], results=res, progress=False)
+    assert [json.loads(x)["key"] for x in res.read_text().splitlines()] == [0, 1, 2, 3, 4]
+    with pytest.raises(ValueError, match="job 5 failed"):  # the same from a worker process
+        run_jobs(fail_on, [(i, (i, 5)) for i in range(8)], workers=2, results=res, progress=False)
+    done = {json.loads(x)["key"] for x in res.read_text().splitlines()}
+    assert {0, 1, 2, 3, 4} <= done and 5 not in done
+
+
+def test_keys_that_print_alike_are_different_jobs():
+    assert run_jobs(str, [(1, (1,)), ("1", ("one",))], progress=False) == {1: "1", "1": "one"}

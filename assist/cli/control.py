@@ -14,6 +14,7 @@ from ptw_env.cli import (
     SPEED_KMH,
     SPEED_MS,
     CLIError,
+    add_executor_options,
     add_vehicle_option,
     check_outputs,
     check_speeds_in_vehicle,
@@ -147,12 +148,7 @@ def _build_evaluate(p: argparse.ArgumentParser):
     g.add_argument("--speeds", type=kmh_list, default=None, metavar="KMH,...", help="cruise speeds to sweep [km/h]")
     g.add_argument("--seeds", type=_SEEDS, default=None, metavar="N", help="N seeds from --seed on")
     g.add_argument("--table", default=None, metavar="OUT.csv", help="the sweep's table, one row per episode (required)")
-    g.add_argument("--workers", type=_WORKERS, default=1, metavar="N",
-                   help="episodes at once in local processes (default 1), or the size of a local Dask cluster")
-    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="a Dask scheduler, tcp://HOST:PORT, or 'local' (default: DASK_SCHEDULER_ADDRESS if set)")
-    g.add_argument("--resume", action="store_true",
-                   help="keep the episodes a previous run of this --table finished (OUT.csv.jobs.jsonl)")
+    add_executor_options(g, "episodes", "keep the episodes a previous run of this --table finished (OUT.csv.jobs.jsonl)")
 
     def run(a: argparse.Namespace) -> int:
         from assist.evaluate import metrics_table, plot_episode
@@ -177,7 +173,6 @@ def _build_evaluate(p: argparse.ArgumentParser):
 
 
 _SEEDS = number(1, 1_000_000, integer=True)
-_WORKERS = number(1, 256, integer=True)
 
 
 def _name_list(text: str) -> list[str]:
@@ -189,11 +184,12 @@ def _name_list(text: str) -> list[str]:
 
 def _sweep(a: argparse.Namespace) -> int:
     """``evaluate``'s sweep form: controllers x scenarios x speeds x effect sets x seeds on the execution layer."""
+    import os
     from pathlib import Path
 
     from ptw_env.jobs import JobsError, executor_name
-    from ptw_env.outputs import atomic_write_text
-    from ptw_env.scenarios import scenario_names
+    from ptw_env.outputs import atomic_write_text, check_writable
+    from ptw_env.scenarios import make_scenario, scenario_names
 
     from assist.evaluate import (EvaluationError, load_sweep_file, plot_sweep, run_sweep, sweep_points,
                                  sweep_summary, sweep_table)
@@ -216,6 +212,11 @@ def _sweep(a: argparse.Namespace) -> int:
     for name in scenarios:
         if name not in known:
             raise CLIError(f"scenario {name!r} is not one of {sorted(known)}")
+        for sp in speeds:  # a speed the scenario cannot take is refused here, not in a worker
+            try:
+                make_scenario(name, speed_kmh=sp)
+            except ValueError as exc:
+                raise CLIError(f"--speeds: {exc}") from None
     for ef in effects:
         for t in ef:
             effect_arg(t)  # checked against effects.md here, not in a worker
@@ -229,15 +230,17 @@ def _sweep(a: argparse.Namespace) -> int:
         if sp is not None:
             check_speeds_in_vehicle([sp / 3.6], v, "--speeds")
     jobs_file = Path(str(a.table) + ".jobs.jsonl")
-    if a.resume:
-        if not jobs_file.exists():
-            raise CLIError(f"--resume: no previous run of {a.table} ({jobs_file} is missing)")
-        a.overwrite = True
-    elif jobs_file.exists():
-        if not a.overwrite:
-            raise CLIError(f"--table: {jobs_file} holds a previous run; pass --resume to continue it or --overwrite")
+    if a.resume and not jobs_file.exists():
+        raise CLIError(f"--resume: no previous run of {a.table} ({jobs_file} is missing)")
+    if not a.resume and jobs_file.exists() and not a.overwrite:
+        raise CLIError(f"--table: {jobs_file} holds a previous run; pass --resume to continue it or --overwrite")
+    check_outputs(a, "plot", "json")
+    for opt in ("plot", "json"):
+        if getattr(a, opt) is not None and os.path.realpath(getattr(a, opt)) == os.path.realpath(a.table):
+            raise CLIError(f"--{opt} and --table both name {a.table}: each output needs its own file")
+    check_writable(a.table, "--table", overwrite=a.overwrite or a.resume)  # --resume completes that table
+    if not a.resume and jobs_file.exists():
         jobs_file.unlink()
-    check_outputs(a, "table", "plot", "json")
     print(f"vehicle: {v.name}; {len(points)} episodes ({len(controllers)} controllers x {len(scenarios)} scenarios "
           f"x {len(speeds)} speeds x {len(effects)} effect sets x {len(seeds)} seeds); executor: {where}")
     try:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from ptw_env.cli import (
     CLIError,
+    add_executor_options,
     add_vehicle_option,
     check_outputs,
     command,
@@ -30,8 +31,6 @@ from ptw_env.cli import (
 
 #: ``--window``: replay window length [s].
 _window = number(0.2, 20.0, unit="s")
-#: ``--workers``: local processes, or the size of a local Dask cluster.
-_workers = number(1, 256, integer=True)
 
 
 def expand_logs(items: list[str]) -> list[str]:
@@ -80,14 +79,8 @@ def _build_diagnose(p: argparse.ArgumentParser):
     p.add_argument("--out", default=None, metavar="DIR",
                    help="with many logs (required then): the folder of the per-log reports and figures and of "
                         "the fleet table fleet.csv")
-    p.add_argument("--workers", type=_workers, default=1, metavar="N",
-                   help="logs diagnosed at once in local processes (default 1), or the size of a local Dask "
-                        "cluster with --scheduler local")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="a Dask scheduler, tcp://HOST:PORT, or 'local' (default: DASK_SCHEDULER_ADDRESS if set; "
-                        "needs the [cluster] extra)")
-    p.add_argument("--resume", action="store_true",
-                   help="with --out: keep the logs a previous run finished (DIR/fleet_jobs.jsonl), diagnose the rest")
+    add_executor_options(p, "logs diagnosed",
+                         "with --out: keep the logs a previous run finished (DIR/fleet_jobs.jsonl), diagnose the rest")
     p.add_argument("--window", type=_window, default=None, metavar="S",
                    help="replay window length [s] (default 2, shorter for short logs)")
     p.add_argument("--pairs", choices=("auto", "all", "none"), default="auto",
@@ -126,6 +119,7 @@ def _build_diagnose(p: argparse.ArgumentParser):
 
 def _fleet(a: argparse.Namespace, logs: list[str], pairs) -> int:
     """Many logs: check them all, then diagnose them on the execution layer (module docstring)."""
+    from assist.diagnose.diagnosis import replay_windows
     from assist.diagnose.fleet import diagnose_fleet, plot_fleet
     from ptw_env.jobs import JobsError, executor_name
     from ptw_env.logs import read_log
@@ -151,8 +145,10 @@ def _fleet(a: argparse.Namespace, logs: list[str], pairs) -> int:
         if path is not None and os.path.realpath(path) in reports:
             raise CLIError(f"--{opt}: {path} is one of the files written in --out; name it otherwise")
     vehicles = []
-    for p in logs:  # every log read and checked against its vehicle before any work
-        vehicles.append(vehicle_for_log(a, read_log(p)))
+    for p in logs:  # every log read, checked against its vehicle and cut into windows before any work
+        ride = read_log(p)
+        vehicles.append(vehicle_for_log(a, ride))
+        replay_windows(ride, vehicles[-1], a.window, source=p)
     print(f"{len(logs)} logs; executor: {where}; reports in {out}/")
     try:
         rows = diagnose_fleet(logs, out, vehicles=vehicles, window_s=a.window, pairs=pairs, workers=a.workers,

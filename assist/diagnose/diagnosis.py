@@ -275,6 +275,20 @@ def diagnose(
     )
 
 
+def replay_windows(log: RideLog, vehicle: Vehicle, window_s: float | None = None, lead_s: float = 0.1,
+                   source: str | None = None):
+    """The log checked against the vehicle and cut into the diagnosis's replay windows
+    (:func:`assist.diagnose.data.make_windows`; ``window_s`` None: :func:`~assist.diagnose.data.auto_window`).
+    Returns ``(windows, notes)``; a log the diagnosis cannot use raises :class:`DiagnoseInputError` naming it,
+    which is how a fleet is checked before any diagnosis starts."""
+    try:
+        check_against_vehicle(log, vehicle)
+    except LogFormatError as exc:
+        raise DiagnoseInputError(str(exc)) from None
+    return make_windows(log, window_s if window_s is not None else auto_window(log.duration_s, lead_s), lead_s,
+                        vehicle.vmin, vehicle.vmax, source=source if source is not None else str(log.path or "log"))
+
+
 def _nominal_replay(log: RideLog, name: str, vehicle: Vehicle, window_s: float | None, lead_s: float,
                     encoder_quantum: float | None | str):
     """The log checked against the vehicle, cut into windows, and the nominal model replayed on all of
@@ -284,12 +298,7 @@ def _nominal_replay(log: RideLog, name: str, vehicle: Vehicle, window_s: float |
             (isinstance(encoder_quantum, (int, float)) and encoder_quantum > 0)):
         raise DiagnoseInputError(
             f"diagnose: encoder_quantum must be a step in rad, None or 'auto', got {encoder_quantum!r}")
-    try:
-        check_against_vehicle(log, vehicle)
-    except LogFormatError as exc:
-        raise DiagnoseInputError(str(exc)) from None
-    win, notes = make_windows(log, window_s if window_s is not None else auto_window(log.duration_s, lead_s), lead_s,
-                              vehicle.vmin, vehicle.vmax, source=name)
+    win, notes = replay_windows(log, vehicle, window_s, lead_s, source=name)
     replay = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in win.channels]), vehicle)
     r, _ = replay.fit_states(replay.params.nominal[None], np.arange(len(win)))
     noise, quantum = noise_levels(r[0] * replay.sigma, win.score, win.channels, encoder_quantum)

@@ -40,15 +40,11 @@ from ptw_env.vehicle import Vehicle
 
 from .data import DiagnoseInputError
 from .diagnosis import diagnose
+from .report import causes_text
 
 #: Columns of the fleet table (``fleet.csv``).
 TABLE_COLUMNS = ("log", "vehicle", "causes", "gain", "explained", "extension", "extension_gain", "extended",
                  "report")
-
-
-def _causes_text(causes: list[dict]) -> str:
-    return "; ".join(c["cause"] + ("(" + ", ".join(f"{k}={v:g}" for k, v in c["params"].items()) + ")"
-                                   if c["params"] else "") for c in causes)
 
 
 def diagnose_one(path: str, out_dir: str, vehicle: Vehicle | None = None, window_s: float | None = None,
@@ -80,7 +76,7 @@ def fleet_table(rows: Sequence[dict[str, Any]]) -> str:
     w.writerow(TABLE_COLUMNS)
     for r in rows:
         ext = "" if r["extension"] is None else "; ".join(f"{t['name']}={t['coefficient']:g}" for t in r["extension"])
-        w.writerow([r["log_name"], r["vehicle"], _causes_text(r["causes"]), r["gain"], r["explained"], ext,
+        w.writerow([r["log_name"], r["vehicle"], causes_text(r["causes"]), r["gain"], r["explained"], ext,
                     "" if r["extension_gain"] is None else r["extension_gain"], r["extended"], r["report"]])
     return buf.getvalue()
 

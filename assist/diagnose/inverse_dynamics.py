@@ -18,6 +18,8 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from ptw_env.logs import RideLog
+from ptw_env.dynamics import compile_plant
+from ptw_env.kernels import rhs_into
 from ptw_env.vehicle import DELTA, DELTA_DOT, FYF, FYR, PHI, PHI_DOT, R, VY, Vehicle
 
 from .data import DiagnoseInputError
@@ -34,7 +36,8 @@ def steer_equation_fit(log: RideLog, vehicle: Vehicle, roll: np.ndarray | None =
 
     Row ``delta_dot`` of model.md, ``E_6 x' = A_6(vx) x + tau`` (N m), with every term computed
     from the log: ``delta``, ``delta_rate``, ``yaw_rate``, ``roll_rate`` measured, the lean ``roll``
-    [rad] (default the log's ``roll`` column; the nonlinear ``sin(phi)`` in the gravity terms),
+    [rad] (default the log's ``roll`` column), the gravity terms with their sines as the plant has them
+    (the model's own right-hand side, :func:`ptw_env.kernels.rhs_into`),
     their derivatives by a Savitzky-Golay filter (``window`` samples, cubic;
     the same filter smooths every undifferentiated signal, so all terms have the same lag), and the
     unmeasured ``vy'``, ``Fyf``, ``Fyr`` solved per sample from the lateral and yaw rows and the
@@ -81,20 +84,20 @@ def steer_equation_fit(log: RideLog, vehicle: Vehicle, roll: np.ndarray | None =
     if np.any(vehicle.A0[VY:DELTA_DOT + 1, VY]) or np.any(vehicle.A1[VY:DELTA_DOT + 1, VY]):
         raise DiagnoseInputError(f"{vehicle.name}: vy enters a mechanical row of A; the steer-equation fit cannot "
                                  "solve the axle forces from the accelerometer")
-    res = np.full(n, np.nan)
+    # unknowns u = [vy', Fyf, Fyr] per sample: rows VY (lateral) and R (yaw) of E x' = A x + B tau (no sine
+    # terms there), and the accelerometer M ay = Fyf + Fyr; solved with every other term from the log
     for k in range(n):
         A = vehicle.A(vx[k])
-        x, xd = X[k].copy(), Xd[k].copy()
-        # unknowns u = [vy', Fyf, Fyr]: rows VY (lateral) and R (yaw) of E x' - A x - B tau = 0, and M ay = Fyf + Fyr
         M3 = np.array([[E[VY, VY], -A[VY, FYF], -A[VY, FYR]], [E[R, VY], -A[R, FYF], -A[R, FYR]],
                        [0.0, 1.0, 1.0]])
-        rhs = np.array([-(E[VY] @ xd - A[VY] @ x - B[VY] * tau[k]), -(E[R] @ xd - A[R] @ x - B[R] * tau[k]),
-                        vehicle.mass * ay[k]])
-        u = np.linalg.solve(M3, rhs)
-        xd[VY], x[FYF], x[FYR] = u
-        x_g = x.copy()
-        x_g[PHI] = np.sin(x[PHI])  # gravity acts through sin(phi) in the plant (model.md)
-        res[k] = E[DELTA_DOT] @ xd - A[DELTA_DOT] @ x_g - B[DELTA_DOT] * tau[k]
+        rhs = np.array([-(E[VY] @ Xd[k] - A[VY] @ X[k] - B[VY] * tau[k]),
+                        -(E[R] @ Xd[k] - A[R] @ X[k] - B[R] * tau[k]), vehicle.mass * ay[k]])
+        Xd[k, VY], X[k, FYF], X[k, FYR] = np.linalg.solve(M3, rhs)
+    # the steer row's residual torque through the model's own right-hand side (sin(phi), sin(delta) and all):
+    # E_6 f(x, tau) is row 6 of A x + B tau with its sines, since E's row 6 has no tire-force columns
+    f = np.empty_like(X)
+    rhs_into(X, np.ascontiguousarray(tau), np.ascontiguousarray(vx), *compile_plant(vehicle).flat(), f)
+    res = E[DELTA_DOT] @ (Xd - f).T
     half = window // 2
     ok = (vx >= vehicle.vmin) & (vx <= vehicle.vmax) & np.isfinite(res)
     ok[:half], ok[-half:] = False, False

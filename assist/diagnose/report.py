@@ -45,6 +45,12 @@ def sig(x: float, digits: int = 4) -> float:
     return float(f"{float(x):.{digits}g}")
 
 
+def causes_text(causes: list[dict[str, Any]], sep: str = "; ") -> str:
+    """The report's causes as text, ``cause(param=value, ...)`` joined by ``sep`` (``none`` as itself)."""
+    return sep.join(c["cause"] + ("(" + ", ".join(f"{k}={v:g}" for k, v in c["params"].items()) + ")"
+                                  if c["params"] else "") for c in causes)
+
+
 def hypotheses_json(ranked, causes_of) -> list[dict[str, Any]]:
     """The report's ``hypotheses`` list: per ranked hypothesis (:func:`assist.diagnose.selection.order`), its
     causes (``causes_of(r)``, effects.md form), gain, score and the evidence (rounded to 4 decimals)."""
@@ -169,10 +175,7 @@ class DiagnosisReport:
 
     def summary(self) -> str:
         """A few human-readable lines."""
-        names = ", ".join(
-            c["cause"] + ("(" + ", ".join(f"{k}={v:g}" for k, v in c["params"].items()) + ")" if c["params"] else "")
-            for c in self.causes
-        )
+        names = causes_text(self.causes, ", ")
         lines = [
             f"verdict: {names}; {'explained' if self.explained else 'NOT explained'} to within the noise; "
             f"held-out gain {self.gain:.3f}",
