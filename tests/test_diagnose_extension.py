@@ -67,12 +67,18 @@ def test_a_log_the_table_explains_gets_no_closure():
     assert clean["causes"] == [{"cause": "none", "params": {}}] and "extension" not in clean
 
 
-@pytest.mark.slow
-def test_coulomb_friction_is_a_known_confusion_with_viscous_damping():
-    """Documented limitation: 1.5 N m of Coulomb steering friction on the urban ride is extended as
-    viscous damping (-28 N m s/rad; it removes most of the residual) rather than as Coulomb friction,
-    although the Coulomb term fits the fitting windows better; kept as a slow test so that a fix shows."""
+def test_coulomb_steering_friction_is_found_with_its_coefficient():
+    """1.5 N m of Coulomb steering friction (``-Tc tanh(delta_dot / 0.02)``, the library's own form,
+    by the test-only plant) on the urban ride: the diagnosis's table stand-in is a steering damping
+    (41 N m s/rad); the extension names ``steer_coulomb`` with ``c`` within 25 % of -1.5 (measured
+    -1.593) and explains the log with it. Before the initial-state fits had a second start (the
+    current model's states, ``Replay.fit_states_from``) one held-out window was trapped in a local
+    minimum and viscous damping (-28 N m s/rad) won. Known miss: on the handling ride (seed 51) the
+    viscous term still wins (held-out improvement 4.8 against 1.5 noise variances per value)."""
     from test_diagnose_outside import coulomb_friction
 
     rep = diagnose(ride_outside("urban", 41, torque=coulomb_friction(1.5)), progress=False)
-    assert set(_terms(rep)) & {"steer_viscous", "steer_coulomb"}
+    terms = _terms(rep)
+    assert "steer_coulomb" in terms, terms
+    assert abs(terms["steer_coulomb"]["coefficient"] + 1.5) <= 0.25 * 1.5, terms
+    assert rep.extended and rep.extension["gain"] > rep.gain

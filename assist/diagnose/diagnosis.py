@@ -218,13 +218,23 @@ def diagnose(
             rv = refined(names.index(verdict.name))[0][1]
             ratio = ratio_to_noise(rv)
     hv = names.index(verdict.name)
+    # a verdict the held-out data do not separate from a confusable rival (selection.CONFUSABLE)
+    amb = selection.ambiguity(ranked, verdict, S, counts) if verdict.name != "none" else None
+    ambiguous = None
+    if amb is not None:
+        rival, margin = amb
+        ambiguous = {"between": [replay.params.to_causes(verdict.causes, fits[verdict.name].z),
+                                 replay.params.to_causes(rival.causes, fits[rival.name].z)],
+                     "separation_margin": round(float(margin), 4)}
 
     # 5. no cause of effects.md explains the log: extend the model (closure terms, extension.py)
     ext, extended = None, False
     if extend_model and not explained:
         def explains(z: np.ndarray) -> bool:
-            rz = replay.fit_states(z[None], all_w, x0=replay.fit_states(z[None], all_w, steps=SCORE_STATE_STEPS)[1],
-                                   steps=SCORE_STATE_STEPS)[0][0]
+            # states from the measured guess and from the verdict's (a second start, as the extension
+            # scores its terms), then refined once more
+            x1 = replay.fit_states_from(z[None], all_w, xa[1], steps=SCORE_STATE_STEPS)[1]
+            rz = replay.fit_states(z[None], all_w, x0=x1, steps=SCORE_STATE_STEPS)[0][0]
             return bool(np.all(ratio_to_noise(rz) <= 1.0 + selection.EXPLAINED_TOL))
 
         bases = [([], 0, replay.params.nominal.copy())]
@@ -269,6 +279,7 @@ def diagnose(
         sim_steps=replay.sim_steps,
         plot_data=plot_data,
         extension=None if ext is None else ext.to_json(),
+        ambiguous=ambiguous,
         extended=extended,
         model_z=np.array(z_shown, dtype=float),
         verdict_z=np.array(Z[hv], dtype=float),

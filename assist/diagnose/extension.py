@@ -76,9 +76,16 @@ class Extension:
                 "gain_over_what_it_extends": round(float(self.gain_over_base), 4), "selection": self.steps}
 
 
-def _held_out_S(fitter: HypothesisFitter, Z: np.ndarray, test_w: np.ndarray, steps: int) -> np.ndarray:
-    rt, _ = fitter.replay.fit_states(Z, test_w, steps=steps)
-    return (rt**2).sum(axis=2)  # (H, Wt, C)
+def _held_out(fitter: HypothesisFitter, Z: np.ndarray, test_w: np.ndarray, steps: int,
+              x_alt: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Held-out weighted squares per (row, window, channel) and the fitted initial states; with
+    ``x_alt`` the states start from both the measured guess and ``x_alt``
+    (:meth:`assist.diagnose.replay.Replay.fit_states_from`)."""
+    if x_alt is None:
+        rt, x = fitter.replay.fit_states(Z, test_w, steps=steps)
+    else:
+        rt, x = fitter.replay.fit_states_from(Z, test_w, x_alt, steps=steps, cross=True)
+    return (rt**2).sum(axis=2), x  # (H, Wt, C), (H, Wt, NX)
 
 
 def _usable(name: str, channels: tuple[str, ...]) -> bool:
@@ -117,8 +124,12 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
     z = np.array(base_z, dtype=float)
     steps_json: list[dict] = []
     fits: dict[str, Fit] = {}
-    S_base = float(_held_out_S(fitter, z[None], test_w, score_steps).sum())
+    S0, x0 = _held_out(fitter, z[None], test_w, score_steps)
+    S_base, x_cur = float(S0.sum()), x0[0]
     for _ in range(MAX_TERMS):
+        # the current model's states on the fitting windows: a second start of every candidate's
+        # fit (a sharp closure, Coulomb friction, traps the fit from the measured states)
+        x_fit = fitter.replay.fit_states(z[None], fitter.widx)[1][0]
         cands = [t.name for t in CLOSURE_LIBRARY if t.name not in chosen and _usable(t.name, channels)]
         if not cands:
             break
@@ -134,7 +145,7 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
                         zz[i] = v
                         Z.append(zz)
                         owner.append(c)
-        r, _ = fitter.replay.fit_states(np.array(Z), fitter.widx[::2])
+        r, _ = fitter.replay.fit_states_from(np.array(Z), fitter.widx[::2], x_fit[::2])
         cost = np.einsum("mwkc,mwkc->m", r, r)
         best_of = {c: min((cost[j], j) for j, o in enumerate(owner) if o == c) for c in cands}
         top = sorted(cands, key=lambda c: best_of[c][0])[:REFINE_TOP]
@@ -142,11 +153,13 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
         names, zs = ["current"], [z]
         for c in top:
             hyp = Hypothesis(tuple(chosen) + (c,))
-            f = fitter.refine(hyp, Z[best_of[c][1]], base=z)
+            f = fitter.refine(hyp, Z[best_of[c][1]], base=z, x_alt=x_fit)
             fits[c] = f
             names.append(c)
             zs.append(f.z)
-        S = _held_out_S(fitter, np.array(zs), test_w, score_steps)
+        # every candidate's held-out states also start from the current model's (a second start:
+        # a sharp closure such as Coulomb friction can trap the first one in a local minimum)
+        S, xs = _held_out(fitter, np.array(zs), test_w, score_steps, x_cur)
         ranked = selection.rank(names, [()] + [(c,) for c in top], [0] + [1] * len(top), S, counts, channels)
         steps_json.append({"chosen_so_far": list(chosen),
                            "candidates": [{"term": rk.name, "improvement": round(rk.improvement, 4),
@@ -157,6 +170,7 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
             break
         chosen.append(best.name)
         z = fits[best.name].z
+        x_cur = xs[names.index(best.name)]
         if explains(z):
             break
     if not chosen:
@@ -171,7 +185,7 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
         std = np.full(len(chosen), math.nan)
-    S_ext = float(_held_out_S(fitter, z[None], test_w, score_steps).sum())
+    S_ext = float(_held_out(fitter, z[None], test_w, score_steps, x_cur)[0].sum())
     terms = []
     for j, c in enumerate(chosen):
         t, i = CLOSURES[c], CLOSURE_INDEX[c]

@@ -171,7 +171,8 @@ class HypothesisFitter:
             out[c] = (np.array(Z[j]), float(cost[j]))
         return out
 
-    def refine(self, hyp: Hypothesis, z_start: np.ndarray, base: np.ndarray | None = None) -> Fit:
+    def refine(self, hyp: Hypothesis, z_start: np.ndarray, base: np.ndarray | None = None,
+               x_alt: np.ndarray | None = None) -> Fit:
         """:func:`scipy.optimize.least_squares` on ``hyp``'s parameters from ``z_start``.
 
         Each evaluated model gets its own initial-state sensitivity (:meth:`Replay.linearise`)
@@ -182,7 +183,9 @@ class HypothesisFitter:
         holds only the parameter's effect, not the last step's), all in one batched simulation.
         ``base``: the values of the parameters outside ``hyp`` (default nominal; a model extension
         is refined on top of the table verdict). The result keeps the weighted-residual Jacobian
-        (``extra["jac"]``) for the parameters' uncertainty.
+        (``extra["jac"]``) for the parameters' uncertainty. ``x_alt`` (shape ``(Ws, NX)``): a
+        second start of every window's initial-state fit (the states another model fitted), the
+        better kept per window (:meth:`Replay.fit_states_from` says why: Coulomb friction).
         """
         idx = list(hyp.idx)
         k = len(idx)
@@ -205,6 +208,13 @@ class HypothesisFitter:
                 x = rp.x_guess[widx][None]
                 r0, P = rp.linearise(Z, widx, x)
                 r, x = rp.gauss_newton(Z, widx, x, r0, P, STATE_STEPS)
+                if x_alt is not None:
+                    xa = np.asarray(x_alt, dtype=float)[None]
+                    r0a, Pa = rp.linearise(Z, widx, xa)
+                    ra, xa = rp.gauss_newton(Z, widx, xa, r0a, Pa, STATE_STEPS)
+                    b = np.einsum("mwkc,mwkc->mw", ra, ra) < np.einsum("mwkc,mwkc->mw", r, r)
+                    r, x = np.where(b[..., None, None], ra, r), np.where(b[..., None], xa, x)
+                    P = tuple(np.where(b[..., None, None], pa, p) for pa, p in zip(Pa, P))
                 for _ in range(RELINEARISE):
                     r0, P = rp.linearise(Z, widx, x)
                     r, x = rp.gauss_newton(Z, widx, x, r0, P, 1)

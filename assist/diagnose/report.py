@@ -129,6 +129,10 @@ class DiagnosisReport:
     plot_data: dict[str, Any] = field(default_factory=dict, repr=False)
     extension: dict | None = None  #: diagnose.md verdict.extension (closure terms and their gain), or None
     extended: bool = False  #: the extended model explains the log to within the noise
+    #: ``{"between": [causes A, causes B], "separation_margin": m}`` when the held-out data do not
+    #: separate the verdict A from a confusable cause B (:func:`assist.diagnose.selection.ambiguity`),
+    #: each with its own fitted size; else None
+    ambiguous: dict | None = None
     #: internal parameter vector (:mod:`assist.diagnose.params`) of the reported model: the extension's when there is one,
     #: else the verdict's; what :func:`assist.diagnose.score_model` replays on another log of the same vehicle
     model_z: np.ndarray | None = field(default=None, repr=False)
@@ -163,6 +167,8 @@ class DiagnosisReport:
         if self.extension is not None:
             verdict["extension"] = self.extension
         verdict["extended"] = bool(self.extended)
+        if self.ambiguous is not None:
+            verdict["ambiguous"] = self.ambiguous
         return {
             "log": self.log,
             "vehicle": self.vehicle.identity(),
@@ -184,6 +190,11 @@ class DiagnosisReport:
                         for c in self.nominal_rmse),
             "nominal residual: " + self.nominal_where.get("summary", ""),
         ]
+        if self.ambiguous is not None:
+            a, b = (causes_text(c, ", ") for c in self.ambiguous["between"])
+            lines.insert(1, f"ambiguous between {a} and {b}: the held-out data do not separate them "
+                            f"(separation margin {self.ambiguous['separation_margin']:g} noise variances per value; "
+                            "a ride that reaches the friction limit would)")
         if not self.explained and self.residual is not None:
             lines.append("unexplained residual: " + self.residual.get("summary", ""))
         if self.extension is not None:

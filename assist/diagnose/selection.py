@@ -167,6 +167,43 @@ def rank(names: list[str], causes: list[tuple[str, ...]], ks: list[int], S: np.n
     return out
 
 
+#: Causes whose effects look alike unless the ride reaches the friction limit: a lower cornering
+#: stiffness and a saturating tire (``Fmax tanh(F_lin / Fmax)``, effects.md) both lower the lateral
+#: force at a given slip; only a force that stops growing with slip in the corners tells the
+#: saturation apart. When the held-out data do not separate the two, the report says so.
+CONFUSABLE: tuple[tuple[str, str], ...] = (("tire_stiffness", "tire_saturation"),)
+
+
+def ambiguity(ranked: list[Ranked], verdict: Ranked, S: np.ndarray, counts: np.ndarray) -> tuple[Ranked, float] | None:
+    """The rival of a single-cause ``verdict`` that the held-out data do not separate from it.
+
+    For a verdict ``A`` in a :data:`CONFUSABLE` pair ``(A, B)`` whose other member ``B`` gains on
+    the log too (held-out improvement over nominal at least :data:`MIN_IMPROVEMENT`), ``A`` is
+    *separated* from ``B`` when it beats ``B`` as a pair must beat its single cause: improvement of
+    ``A`` over ``B`` at least :data:`MIN_IMPROVEMENT` noise variances per value and, without the
+    :data:`TRIM` share of the windows where it gains most, at least half of that (the support
+    margin of :func:`rank`, with ``B`` in place of the nominal model). Returns ``(B, margin)`` when
+    that margin is negative (ambiguous), else ``None``. ``S``, ``counts``: as :func:`rank`, rows in
+    the order of ``ranked``.
+    """
+    if len(verdict.causes) != 1:
+        return None
+    a = verdict.causes[0]
+    rivals = [b for pair in CONFUSABLE if a in pair for b in pair if b != a]
+    by_causes = {r.causes: h for h, r in enumerate(ranked)}
+    ha = by_causes.get(verdict.causes)
+    nw = counts.sum(axis=1).astype(float)
+    Sw = S.sum(axis=2)
+    for b in rivals:
+        hb = by_causes.get((b,))
+        if ha is None or hb is None or ranked[hb].improvement < MIN_IMPROVEMENT:
+            continue
+        margin = _margins(Sw[hb] - Sw[ha], nw)[2]
+        if margin < 0.0:
+            return ranked[hb], margin
+    return None
+
+
 def order(ranked: list[Ranked]) -> list[Ranked]:
     """Best first: by score (ties: fewer parameters, then the name); ``none`` leads the score-0 ties."""
     return sorted(ranked, key=lambda r: (-r.score, r.k, r.name))
@@ -178,4 +215,4 @@ def choose(ranked: list[Ranked]) -> Ranked:
     return best if best.supported else ranked[0]
 
 
-__all__ = ["Ranked", "rank", "choose", "order", "PARAM_PENALTY", "MIN_IMPROVEMENT", "TRIM", "EXPLAINED_TOL"]
+__all__ = ["Ranked", "rank", "choose", "order", "ambiguity", "CONFUSABLE", "PARAM_PENALTY", "MIN_IMPROVEMENT", "TRIM", "EXPLAINED_TOL"]
