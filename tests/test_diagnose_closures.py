@@ -9,7 +9,7 @@ noise kept. Sizes are fractions of each term's search bound, which follows the v
 (:func:`assist.diagnose.params.param_set`).
 
 Covered elsewhere: ``yaw_rate_scale``, ``lateral_aero`` and ``roll_aero`` (``test_diagnose_extension.py``);
-``steer_coulomb`` (a known confusion with viscous damping, slow test there). Terms the table claims,
+``steer_coulomb`` (urban ride, there; on this handling ride viscous damping still wins). Terms the table claims,
 so that no closure is needed: ``steer_viscous`` is effects.md's ``steer_damping``, ``roll_offset`` its
 ``roll_moment_offset``, ``steer_offset`` its ``road_bank`` (``test_diagnose_outside.py``). And
 ``ay_scale`` is named as ``ay_frame`` (below): in a steady turn a partly unrotated accelerometer reads
