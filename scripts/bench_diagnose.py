@@ -13,11 +13,16 @@ log, so that it means something on a loaded or a different machine:
 
 Usage::
 
-    python scripts/bench_diagnose.py                 # the disclosed 90 s reference log, then a 90 s
-                                                     # simulated urban ride with a hidden bank
+    python scripts/bench_diagnose.py                 # the median set below (8 logs of 90 s)
     python scripts/bench_diagnose.py --log ride.csv  # any log
     python scripts/bench_diagnose.py --repeat 3
     python scripts/bench_diagnose.py --pairs all     # every pair of causes (default: forward selection)
+
+The median set (issue 19: "median diagnose time of a 90 s log under 5 s on 2 cores"), fixed before
+it was first timed: the disclosed ``nominal_urban.csv`` and seven simulated 90 s rides with seeds
+101-107 (reference sensors, noise on): urban with nothing hidden, urban with a 0.04 rad bank, urban
+with a 60 kg payload, handling with tire stiffness 0.8 / 0.84, handling with 20 N m s/rad of steering
+damping, urban with a 0.01 rad/s yaw-gyro bias, slalom with tire saturation at mu_peak 0.6.
 
 The first diagnosis of a fresh interpreter also pays numba's cache load; the
 script warms it up on a short ride first (not timed).
@@ -72,6 +77,18 @@ def nominal_replay_seconds(log, repeat: int = 3) -> float:
     return best
 
 
+#: The median set (module docstring): (scenario, hidden effects) of the simulated rides, seeds 101-107.
+MEDIAN_SET: tuple[tuple[str, dict], ...] = (
+    ("urban", {}),
+    ("urban", {"road_bank": {"bank_rad": 0.04}}),
+    ("urban", {"payload": {"mass_kg": 60.0}}),
+    ("handling", {"tire_stiffness": {"front_scale": 0.8, "rear_scale": 0.84}}),
+    ("handling", {"steer_damping": {"damping_nms": 20.0}}),
+    ("urban", {"gyro_bias": {"yaw_rate_bias": 0.01, "roll_rate_bias": 0.0}}),
+    ("slalom", {"tire_saturation": {"mu_peak": 0.6}}),
+)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--log", action="append", default=None, help="ride log(s) to diagnose (default: see above)")
@@ -91,13 +108,17 @@ def main(argv: list[str] | None = None) -> int:
     if a.log:
         logs = [(p, p) for p in a.log]
     else:
-        logs.append(("nominal_urban.csv (reference, 90 s)", _shared_data() / "nominal_urban.csv"))
-        ride = ride_scenario("urban", effects={"road_bank": {"bank_rad": 0.04}}, seed=1)
-        logs.append(("simulated urban ride, 90 s, hidden road_bank 0.04", ride.log))
+        logs.append(("nominal_urban.csv (disclosed, 90 s)", _shared_data() / "nominal_urban.csv"))
+        for seed, (scen, eff) in enumerate(MEDIAN_SET, start=101):
+            what = "nothing hidden" if not eff else ", ".join(
+                f"{c} " + " ".join(f"{v:g}" for v in p.values()) for c, p in eff.items())
+            logs.append((f"{scen}, 90 s, seed {seed}: {what}",
+                         ride_scenario(make_scenario(scen, duration_s=90.0), effects=eff or None, seed=seed).log))
     print(f"pairs: {a.pairs}")
     print(f"{'log':52s} {'seconds':>7s} {'replay s':>8s} {'x replay':>8s} {'x realtime':>10s} {'sim share':>9s} "
           f"{'vehicle-steps':>14s}  verdict")
     worst = 0.0
+    times: list[float] = []
     for name, src in logs:
         ref = nominal_replay_seconds(src)  # the reference, on the same log, before and after (the best)
         best = None
@@ -110,14 +131,19 @@ def main(argv: list[str] | None = None) -> int:
         dt, rep = best
         ref = min(ref, nominal_replay_seconds(src))
         worst = max(worst, dt)
+        times.append(dt)
         duration = _as_log(src).duration_s
         verdict = ", ".join(c["cause"] for c in rep.causes)
         print(f"{name:52s} {dt:7.1f} {ref:8.3f} {dt / ref:8.0f} {duration / dt:10.2f} "
               f"{100 * rep.sim_seconds / dt:8.0f} % {rep.sim_steps:14,d}  {verdict}")
     print("x replay: diagnosis time / one batched nominal replay of the same log (all windows, same run); "
           "x realtime: log duration / diagnosis time")
-    print(f"target: < 60 s per 90 s log on 2 cores; slowest here {worst:.1f} s "
-          f"({'met' if worst < 60.0 else 'NOT met'}; {os.cpu_count()} CPUs visible; other processes share them)")
+    import statistics
+
+    med = statistics.median(times)
+    print(f"median {med:.1f} s over {len(times)} logs; slowest {worst:.1f} s "
+          f"(targets: median < 5 s, issue 19: {'met' if med < 5.0 else 'NOT met'}; every log < 60 s, issue 7: "
+          f"{'met' if worst < 60.0 else 'NOT met'}; {os.cpu_count()} CPUs visible; other processes share them)")
     return 0
 
 
