@@ -15,9 +15,9 @@ so that no closure is needed: ``steer_viscous`` is effects.md's ``steer_damping`
 ``ay_scale`` is named as ``ay_frame`` (below): in a steady turn a partly unrotated accelerometer reads
 ``ay (1 - gravity_gain)``, a scale error.
 
-Measured (seed 51, 45 s, reference sensors): yaw_aero 0.0762 for 0.0756, yaw_vx_vy -3.038 for
--3.026, lateral_vx_vy -2.198 for -2.232, delta_offset 0.00971 for 0.01, ay_offset 0.297 for 0.3,
-steer_self_aligning -1.361 for -1.389 (at 0.6 of its bound on the urban ride it is extended as
+Measured (seed 51, 45 s, reference sensors): yaw_aero 0.0761 for 0.0756, yaw_vx_vy -3.040 for
+-3.026, lateral_vx_vy -2.201 for -2.232, delta_offset 0.00971 for 0.01, ay_offset 0.297 for 0.3,
+steer_self_aligning -1.362 for -1.389 (at 0.6 of its bound on the urban ride it is extended as
 yaw_vx_vy instead, gain 0.05: a known confusion); ay_scale 0.2 named ay_frame -0.178.
 """
 

@@ -66,12 +66,49 @@ def test_the_ambiguity_rule_reads_the_held_out_evidence():
     assert selection.ambiguity(ranked, selection.choose(ranked), S, counts) is None
 
 
-def test_an_ambiguous_verdict_is_in_the_json_and_the_summary():
+def test_an_ambiguous_verdict_is_reported_with_both_fitted_sizes(monkeypatch):
+    """The diagnosis's wiring: when the rule finds a rival, the report names both with their own
+    fitted sizes, in ``verdict.ambiguous`` and in the summary. The rule is forced here (the second
+    best hypothesis as the rival) on a short banked ride, so that the test is about the wiring."""
+    from assist.diagnose import diagnosis
+
+    seen = {}
+
+    def forced(ranked, verdict, S, counts):
+        rival = [r for r in selection.order(ranked) if r.name not in ("none", verdict.name)][0]
+        seen["rival"] = rival.name
+        return rival, -0.004
+
+    monkeypatch.setattr(diagnosis.selection, "ambiguity", forced)
     rep = diagnose(ride("double_lane_change", {"road_bank": {"bank_rad": 0.05}}, seed=3, duration_s=24.0),
                    pairs=False, progress=False)
-    rep.ambiguous = {"between": [[{"cause": "tire_stiffness", "params": {"front_scale": 0.8, "rear_scale": 0.84}}],
-                                 [{"cause": "tire_saturation", "params": {"mu_peak": 0.6}}]],
-                     "separation_margin": -0.004}
-    assert rep.to_json()["verdict"]["ambiguous"]["between"][1][0]["params"]["mu_peak"] == 0.6
-    s = rep.summary()
-    assert "ambiguous between tire_stiffness(front_scale=0.8, rear_scale=0.84) and tire_saturation(mu_peak=0.6)" in s
+    a = rep.to_json()["verdict"]["ambiguous"]
+    assert a["between"][0] == rep.causes and a["separation_margin"] == -0.004
+    rival = [h["causes"] for h in rep.hypotheses if "+".join(c["cause"] for c in h["causes"]) == seen["rival"]][0]
+    assert a["between"][1] == rival  # the rival's own fitted sizes, as the hypotheses list has them
+    assert "ambiguous between road_bank(bank_rad=" in rep.summary()
+
+
+def test_two_starts_keep_the_better_state_fit_per_window():
+    """``Replay.fit_states_from``: per (row, window) the weighted residual is the smaller of the fits
+    from the measured start and from ``x_alt`` (and never above either)."""
+    from assist.diagnose.diagnosis import replay_windows
+    from assist.diagnose.replay import Replay
+    from ptw_env.sensors import DEFAULT_NOISE_STD
+    from ptw_env.vehicle import REFERENCE_SCOOTER
+
+    win, _ = replay_windows(ride("double_lane_change", None, seed=4, duration_s=24.0), REFERENCE_SCOOTER)
+    rp = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in win.channels]), REFERENCE_SCOOTER)
+    w = np.arange(len(rp.win))
+    z = np.stack([rp.params.nominal, rp.params.nominal])
+    r1, x1 = rp.fit_states(z, w)
+    bad = x1[0] + rp.state_scale * 3.0  # a poor second start
+    r2, x2 = rp.fit_states_from(z, w, bad)
+    n1, n2 = (np.einsum("mwkc,mwkc->mw", r, r) for r in (r1, r2))
+    assert np.all(n2 <= n1 + 1e-9)
+    r3, _ = rp.fit_states(z, w, x0=np.broadcast_to(bad, x1.shape).copy())
+    n3 = np.einsum("mwkc,mwkc->mw", r3, r3)
+    assert np.allclose(n2, np.minimum(n1, n3))
+    # a good second start (the converged states) helps where the first fit stopped short
+    r4, _ = rp.fit_states_from(z, w, x1[0], cross=True)
+    assert np.all(np.einsum("mwkc,mwkc->mw", r4, r4) <= n1 + 1e-9)

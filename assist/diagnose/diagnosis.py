@@ -231,8 +231,8 @@ def diagnose(
     ext, extended = None, False
     if extend_model and not explained:
         def explains(z: np.ndarray) -> bool:
-            # states from the measured guess and from the verdict's (a second start, as the extension
-            # scores its terms), then refined once more
+            # states from the measured guess and from those of the best-ranked hypothesis (a second
+            # start, as the extension scores its terms), then refined once more
             x1 = replay.fit_states_from(z[None], all_w, xa[1], steps=SCORE_STATE_STEPS)[1]
             rz = replay.fit_states(z[None], all_w, x0=x1, steps=SCORE_STATE_STEPS)[0][0]
             return bool(np.all(ratio_to_noise(rz) <= 1.0 + selection.EXPLAINED_TOL))

@@ -69,15 +69,19 @@ RELINEARISE = 0
 #: Function evaluations allowed per hypothesis refinement (scipy ``max_nfev``).
 MAX_NFEV = 30
 #: Termination of the refinement (scipy ``ftol``, ``xtol``). The selection prices everything in noise
-#: variances per value (a parameter costs ``PARAM_PENALTY`` = 0.01, a verdict needs 0.02): a
-#: relative cost change of 1e-3 of a model near the noise level is ~0.001 per value, ten times below
-#: the smallest price it tells apart, and a step of 1 % of a parameter's typical size is far inside
-#: the 25 % a size must meet. Measured against 1e-6 / 1e-5 (``scripts/bench_diagnose.py``, its eight
-#: 90 s logs): the same verdicts on all eight, median 8.5 -> 5.7 s, the hidden bank 15.7 -> 7.0 s; on
-#: four logs (hidden bank, disclosed nominal and friction, handling stiffness 0.8 / 0.84) the same
-#: sizes and held-out gains to the reported digits.
+#: variances per value (a parameter costs ``PARAM_PENALTY`` = 0.01, a verdict needs 0.02): the
+#: refinement stops when a step gains less than ``FTOL`` = 0.001 noise variances per value, ten times
+#: below the smallest price it tells apart (scipy's relative ``ftol`` is set to ``FTOL n / cost`` at
+#: the start, at most ``FTOL``: a model far from the log is refined as finely). The refinement is
+#: solved in units of each parameter's typical size (:data:`assist.diagnose.params.SCALE`), where
+#: scipy's ``xtol`` stops at a step below 0.1 % of the norm of the parameter vector, the same for
+#: every parameter (in the parameters' own units a pair's small one could stop while still moving
+#: by its own size). 1e-2 there stopped a Coulomb-friction closure at -1.64 N m for -1.59 (tight
+#: tolerances and 1e-3 agree). Measured against ``ftol`` 1e-6 / ``xtol`` 1e-5 in the parameters' own
+#: units (``scripts/bench_diagnose.py``, its eight 90 s logs): the same verdicts on all eight, median
+#: 8.5 -> 5.5-5.8 s (two runs).
 FTOL = 1e-3
-XTOL = 1e-2
+XTOL = 1e-3
 
 
 
@@ -243,11 +247,19 @@ class HypothesisFitter:
             R = R.reshape(k + 1, -1)
             return ((R[1:] - R[0][None]) / h[:, None]).T
 
-        p0 = np.clip(z_start[idx], lo, hi)
-        res = least_squares(fun, p0, jac=jac, bounds=(lo, hi), x_scale=sc, method="trf",
-                            max_nfev=self.max_nfev, xtol=XTOL, ftol=FTOL, gtol=1e-8)
-        z = full(res.x[None])[0]
-        return Fit(hyp, z, float(2.0 * res.cost), int(res.nfev), str(res.message), extra={"jac": res.jac})
+        # solved in units of each parameter's typical size (q = sc q_h), so that scipy's xtol, which
+        # compares the step with the norm of the parameter vector, means the same for every parameter
+        p0 = np.clip(z_start[idx], lo, hi) / sc
+        # scipy's ftol is relative to the cost; FTOL is per scored value (noise variances), so that a
+        # model far from the log (an extension of an unexplained log) is refined as finely
+        r_start = fun(p0 * sc)
+        ftol = min(FTOL, max(1e-10, FTOL * self.n_values / max(float(r_start @ r_start), 1e-300)))
+        res = least_squares(lambda qh: fun(qh * sc), p0, jac=lambda qh: jac(qh * sc) * sc[None, :],
+                            bounds=(lo / sc, hi / sc), method="trf", max_nfev=self.max_nfev, xtol=XTOL,
+                            ftol=ftol, gtol=1e-8)
+        z = full((res.x * sc)[None])[0]
+        return Fit(hyp, z, float(2.0 * res.cost), int(res.nfev), str(res.message),
+                   extra={"jac": res.jac / sc[None, :]})
 
     def added_value(self, fit: Fit) -> dict[str, float]:
         """Score test: how much each other cause would add to ``fit`` (noise variances per value).

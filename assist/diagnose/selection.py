@@ -182,9 +182,9 @@ def ambiguity(ranked: list[Ranked], verdict: Ranked, S: np.ndarray, counts: np.n
     *separated* from ``B`` when it beats ``B`` as a pair must beat its single cause: improvement of
     ``A`` over ``B`` at least :data:`MIN_IMPROVEMENT` noise variances per value and, without the
     :data:`TRIM` share of the windows where it gains most, at least half of that (the support
-    margin of :func:`rank`, with ``B`` in place of the nominal model). Returns ``(B, margin)`` when
-    that margin is negative (ambiguous), else ``None``. ``S``, ``counts``: as :func:`rank`, rows in
-    the order of ``ranked``.
+    margin of :func:`rank`, with ``B`` in place of the nominal model), less ``PARAM_PENALTY`` for
+    each parameter ``A`` has beyond ``B``'s. Returns ``(B, margin)`` when that margin is negative
+    (ambiguous), else ``None``. ``S``, ``counts``: as :func:`rank`, rows in the order of ``ranked``.
     """
     if len(verdict.causes) != 1:
         return None
@@ -198,7 +198,7 @@ def ambiguity(ranked: list[Ranked], verdict: Ranked, S: np.ndarray, counts: np.n
         hb = by_causes.get((b,))
         if ha is None or hb is None or ranked[hb].improvement < MIN_IMPROVEMENT:
             continue
-        margin = _margins(Sw[hb] - Sw[ha], nw)[2]
+        margin = _margins(Sw[hb] - Sw[ha], nw)[2] - PARAM_PENALTY * max(0, verdict.k - ranked[hb].k)
         if margin < 0.0:
             return ranked[hb], margin
     return None
