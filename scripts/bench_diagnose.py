@@ -38,13 +38,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-
-
-def _shared_data() -> Path:
-    for c in (os.environ.get("PTW_SHARED_DIR"), ROOT.parent / "shared", Path("/work/shared")):
-        if c and (Path(c) / "data").is_dir():
-            return Path(c) / "data"
-    raise SystemExit("shared/data not found; set PTW_SHARED_DIR")
+from _outputs import shared_data  # noqa: E402  (scripts/)
 
 
 def _as_log(src):
@@ -106,9 +100,17 @@ def main(argv: list[str] | None = None) -> int:
              progress=False)  # warm-up: numba caches, imports
     logs: list[tuple[str, object]] = []
     if a.log:
-        logs = [(p, p) for p in a.log]
+        from assist.diagnose import DiagnoseInputError
+        from ptw_env.logs import LogDataError, LogFormatError
+
+        logs = []
+        for p in a.log:  # every log read and checked before any timing: one clear line for a bad one
+            try:
+                logs.append((p, _as_log(p)))
+            except (OSError, LogFormatError, LogDataError, DiagnoseInputError) as exc:
+                ap.error(f"--log {p}: {exc}")
     else:
-        logs.append(("nominal_urban.csv (disclosed, 90 s)", _shared_data() / "nominal_urban.csv"))
+        logs.append(("nominal_urban.csv (disclosed, 90 s)", shared_data("") / "nominal_urban.csv"))
         for seed, (scen, eff) in enumerate(MEDIAN_SET, start=101):
             what = "nothing hidden" if not eff else ", ".join(
                 f"{c} " + " ".join(f"{v:g}" for v in p.values()) for c, p in eff.items())

@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .params import CAUSES, GRIDS, N_TABLE, PARAMS, cause_indices
-from .replay import STATE_STEPS, Replay
+from .replay import STATE_STEPS, Replay, keep_better
 
 #: Relative forward-difference step of the Jacobian (fraction of each parameter's scale).
 FD_STEP = 1e-3
@@ -77,9 +77,9 @@ MAX_NFEV = 30
 #: scipy's ``xtol`` stops at a step below 0.1 % of the norm of the parameter vector, the same for
 #: every parameter (in the parameters' own units a pair's small one could stop while still moving
 #: by its own size). 1e-2 there stopped a Coulomb-friction closure at -1.64 N m for -1.59 (tight
-#: tolerances and 1e-3 agree). Measured against ``ftol`` 1e-6 / ``xtol`` 1e-5 in the parameters' own
-#: units (``scripts/bench_diagnose.py``, its eight 90 s logs): the same verdicts on all eight, median
-#: 8.5 -> 5.5-5.8 s (two runs).
+#: tolerances and 1e-3 agree). Against the former ``ftol`` 1e-6 / ``xtol`` 1e-5 in the parameters' own
+#: units: the same verdicts on the eight 90 s logs of ``scripts/bench_diagnose.py`` (its timings are
+#: in the README).
 FTOL = 1e-3
 XTOL = 1e-3
 
@@ -222,9 +222,8 @@ class HypothesisFitter:
                     xa = np.asarray(x_alt, dtype=float)[None]
                     r0a, Pa = rp.linearise(Z, widx, xa)
                     ra, xa = rp.gauss_newton(Z, widx, xa, r0a, Pa, STATE_STEPS)
-                    b = np.einsum("mwkc,mwkc->mw", ra, ra) < np.einsum("mwkc,mwkc->mw", r, r)
-                    r, x = np.where(b[..., None, None], ra, r), np.where(b[..., None], xa, x)
-                    P = tuple(np.where(b[..., None, None], pa, p) for pa, p in zip(Pa, P))
+                    r, x, *P, _ = keep_better((r, x, *P), (ra, xa, *Pa))
+                    P = tuple(P)
                 for _ in range(RELINEARISE):
                     r0, P = rp.linearise(Z, widx, x)
                     r, x = rp.gauss_newton(Z, widx, x, r0, P, 1)

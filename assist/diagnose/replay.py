@@ -423,18 +423,29 @@ class Replay:
         stopped).
         """
         Z = np.atleast_2d(np.asarray(Z, dtype=float))
-        r1, x1 = self.fit_states(Z, widx, steps=steps)
-        xa = np.broadcast_to(np.asarray(x_alt, dtype=float), x1.shape)
-        r2, x2 = self.fit_states(Z, widx, x0=xa, steps=steps)
-        better = np.einsum("mwkc,mwkc->mw", r2, r2) < np.einsum("mwkc,mwkc->mw", r1, r1)
-        r, x = np.where(better[..., None, None], r2, r1), np.where(better[..., None], x2, x1)
+        r, x = self.fit_states(Z, widx, steps=steps)
+        xa = np.broadcast_to(np.asarray(x_alt, dtype=float), x.shape).copy()
+        r, x, _ = keep_better((r, x), self.fit_states(Z, widx, x0=xa, steps=steps))
         if cross and len(Z) > 1:  # a third start per window: the states of the row that fits it best
-            sw = np.einsum("mwkc,mwkc->mw", r, r)
-            x_best = x[np.argmin(sw, axis=0), np.arange(len(widx))]
-            r3, x3 = self.fit_states(Z, widx, x0=np.broadcast_to(x_best, x.shape).copy(), steps=steps)
-            b3 = np.einsum("mwkc,mwkc->mw", r3, r3) < sw
-            r, x = np.where(b3[..., None, None], r3, r), np.where(b3[..., None], x3, x)
+            x_best = x[np.argmin(window_costs(r), axis=0), np.arange(len(widx))]
+            r, x, _ = keep_better((r, x), self.fit_states(Z, widx, x0=np.broadcast_to(x_best, x.shape).copy(),
+                                                          steps=steps))
         return r, x
 
 
-__all__ = ["Replay", "STATE_STEPS"]
+def window_costs(r: np.ndarray) -> np.ndarray:
+    """Weighted sum of squares per (row, window) of a residual of shape (m, Ws, n, C)."""
+    return np.einsum("mwkc,mwkc->mw", r, r)
+
+
+def keep_better(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> tuple:
+    """Per (row, window), the fit of lower weighted residual of two initial-state fits ``a`` and ``b``
+    (tuples whose first item is the residual (m, Ws, n, C), the rest arrays with the same two leading
+    axes: states, pseudo-inverses, ...). Returns ``a``'s items with ``b``'s where ``b`` is better,
+    then the mask (m, Ws)."""
+    better = window_costs(b[0]) < window_costs(a[0])
+    out = tuple(np.where(better.reshape(better.shape + (1,) * (u.ndim - 2)), v, u) for u, v in zip(a, b))
+    return out + (better,)
+
+
+__all__ = ["Replay", "STATE_STEPS", "keep_better", "window_costs"]
