@@ -172,8 +172,9 @@ def run_jobs(fn: Callable[..., Any], jobs: Iterable[tuple[Hashable, Sequence[Any
     done = _load_done(path) if path is not None else {}
     out: dict[str, Any] = {t: done[t] for t in texts if t in done}
     todo = [(k, a) for (k, a), t in zip(jobs, texts) if t not in out]
-    sink = _Sink(path)
+    # connected before the results file is opened: a wrong scheduler leaves nothing behind
     dask = _connect(kind, workers) if todo and kind not in ("serial", "processes") else None
+    sink = _Sink(path)
     try:
         with _bar(progress, len(jobs), len(out), desc) as bar:
             if not todo:

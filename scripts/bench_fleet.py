@@ -24,8 +24,10 @@ from _outputs import local_executors, shared_data  # scripts/_outputs.py (python
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", default=None, help="folder of ride logs (default shared/data/robot_bicycle)")
-    ap.add_argument("--logs", type=int, default=6, help="how many logs (default 6)")
-    ap.add_argument("--workers", type=int, default=2, help="processes / Dask workers (default 2)")
+    from ptw_env.cli import WORKERS, number
+
+    ap.add_argument("--logs", type=number(1, 1e6, integer=True), default=6, help="how many logs (default 6)")
+    ap.add_argument("--workers", type=WORKERS, default=2, help="processes / Dask workers (default 2)")
     a = ap.parse_args(argv)
     data = Path(a.data) if a.data else shared_data("robot_bicycle")
     paths = sorted(data.glob("*.csv"))[: a.logs]

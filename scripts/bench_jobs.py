@@ -31,9 +31,13 @@ def _timed(fn, *a, **kw):
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--episodes", type=int, default=200, help="episodes of the sweep (even; default 200)")
-    ap.add_argument("--workers", type=int, default=2, help="processes / Dask workers (default 2)")
-    ap.add_argument("--trivial", type=int, default=2000, help="trivial jobs for the overhead (default 2000)")
+    from ptw_env.cli import WORKERS, number
+
+    ap.add_argument("--episodes", type=number(2, 1e6, integer=True), default=200,
+                    help="episodes of the sweep (even; default 200)")
+    ap.add_argument("--workers", type=WORKERS, default=2, help="processes / Dask workers (default 2)")
+    ap.add_argument("--trivial", type=number(1, 1e7, integer=True), default=2000,
+                    help="trivial jobs for the overhead (default 2000)")
     a = ap.parse_args(argv)
 
     from assist.evaluate import run_sweep, sweep_points

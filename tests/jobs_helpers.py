@@ -22,8 +22,12 @@ def slow_square(x: int, delay_s: float) -> int:
     return x * x
 
 
-def fail_on(x: int, bad: int) -> int:
-    """``x`` itself, except that ``x == bad`` raises ``ValueError`` (a job that fails on a worker)."""
+def fail_on(x: int, bad: int, delay_s: float = 0.0) -> int:
+    """``x`` itself, except that ``x == bad`` raises ``ValueError`` after ``delay_s`` seconds (a job that
+    fails on a worker, last when the others are fast)."""
     if x == bad:
+        import time
+
+        time.sleep(delay_s)
         raise ValueError(f"job {x} failed")
     return x

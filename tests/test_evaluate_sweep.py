@@ -83,7 +83,8 @@ def test_a_sweep_file_and_resume(tmp_path):
     assert lines[:4] == first and len(lines) == 6  # only the two new episodes ran
     with open(t, newline="") as f:
         table = list(csv.DictReader(f))
-    assert [r["effects"] for r in table].count("road_bank:bank_rad=0.03") == 3 and {r["noise_pct"] for r in table} == {"2"}
+    assert [r["effects"] for r in table].count("road_bank:bank_rad=0.03") == 3 and {r["noise_pct"] for r in table} == {"2.0"}
+    # the file's numbers are read as the command line reads them (--noise 2 is 2.0 too)
 
 
 def test_bad_sweeps_are_refused(tmp_path, capsys):
@@ -91,6 +92,11 @@ def test_bad_sweeps_are_refused(tmp_path, capsys):
     bad.write_text(json.dumps({"controllers": ["ts"], "speeds": [50]}))
     nan = tmp_path / "nan.json"
     nan.write_text('{"noise_pct": NaN}')
+    files = {}
+    for name, obj in (("effect", {"effects": [["nonsense:x=1"]]}), ("noise", {"noise_pct": 1000}),
+                      ("seed", {"seeds": [2**64]}), ("speeds", {"speeds_kmh": [50, 50.0]})):
+        files[name] = tmp_path / f"{name}.json"
+        files[name].write_text(json.dumps(obj))
     cases = [
         (["--seeds", "2"], "--table"),
         (["--sweep", str(bad), "--table", str(tmp_path / "a.csv")], "unknown key(s) ['speeds']"),
@@ -103,6 +109,10 @@ def test_bad_sweeps_are_refused(tmp_path, capsys):
         (["--speeds", "50,50", "--table", str(tmp_path / "h.csv")], "50.0 given twice"),
         (["--scenarios", "urban", "--speeds", "50", "--table", str(tmp_path / "i.csv")], "no cruise speed"),
         (["--seeds", "2", "--table", str(tmp_path / "j.csv"), "--json", str(tmp_path / "j.csv")], "--table"),
+        (["--sweep", str(files["effect"]), "--table", str(tmp_path / "k.csv")], "nonsense"),
+        (["--sweep", str(files["noise"]), "--table", str(tmp_path / "l.csv")], "1000"),
+        (["--sweep", str(files["seed"]), "--table", str(tmp_path / "m.csv")], str(2**64)),
+        (["--sweep", str(files["speeds"]), "--table", str(tmp_path / "n.csv")], "50.0 given twice"),
     ]
     for args, msg in cases:
         assert _run(args) == 2, args

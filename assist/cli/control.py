@@ -208,6 +208,16 @@ def _sweep(a: argparse.Namespace) -> int:
     seeds = spec.get("seeds", list(range(a.seed, a.seed + (a.seeds or 1))))
     effects = spec.get("effects", [list(a.effect)])
     noise = spec.get("noise_pct", a.noise)
+    if spec:  # a file's numbers within the command line's own ranges (NOISE_PCT, SEED, SPEED_KMH)
+        try:
+            if "noise_pct" in spec:
+                noise = NOISE_PCT(str(noise))
+            if "seeds" in spec:
+                seeds = [int(SEED(str(x))) for x in seeds]
+            if "speeds_kmh" in spec:
+                speeds = [None if x is None else float(SPEED_KMH(str(x))) for x in speeds]
+        except argparse.ArgumentTypeError as exc:
+            raise CLIError(f"--sweep: {a.sweep}: {exc}") from None
     known = set(scenario_names())
     for name in scenarios:
         if name not in known:
@@ -219,7 +229,10 @@ def _sweep(a: argparse.Namespace) -> int:
                 raise CLIError(f"--speeds: {exc}") from None
     for ef in effects:
         for t in ef:
-            effect_arg(t)  # checked against effects.md here, not in a worker
+            try:
+                effect_arg(t)  # checked against effects.md here, not in a worker
+            except argparse.ArgumentTypeError as exc:
+                raise CLIError(f"--sweep: effects {ef}: {exc}") from None
     try:
         points = sweep_points(controllers, scenarios, speeds, seeds, effects, noise)
         where = executor_name(a.workers, a.scheduler)
