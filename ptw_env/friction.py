@@ -1,28 +1,41 @@
-"""Road friction that changes along a ride (a wet patch, a damp stretch), for the true plant.
+r"""Road friction that changes along a ride (a wet patch, a damp stretch), for the true plant.
 
-effects.md has two friction-related effects: ``tire_stiffness`` ("Road
-friction (mu) scales both equally") and ``tire_saturation`` (``Fmax_k =
-mu_peak Fz_k``). A :class:`FrictionSchedule` gives the road friction
-``mu(t)`` or ``mu(s)`` and scales *both* together, relative to the reference
-road on which the vehicle's nominal tires were characterised:
+A :class:`FrictionSchedule` gives the road friction ``mu(t)`` or ``mu(s)``
+relative to the reference road on which the vehicle's nominal tires were
+characterised, ``r = mu / mu_ref`` with ``mu_ref`` = :data:`REFERENCE_FRICTION`
+= 0.9 (dry asphalt: the nominal stiffness of model.md *is* the stiffness on a
+road of friction 0.9). How the tire follows the road is the schedule's
+``scaling`` (:data:`SCALINGS`):
 
-.. math::
+``"peak"`` (the default: a wet road as measured tires see it)
+    Friction scales the **peak** force only; the small-slip stiffness stays:
 
-    r = \\mu / \\mu_{ref}, \\qquad
-    C_k \\to r\\, C_k \\ (\\text{front\\_scale}, \\text{rear\\_scale} \\times r), \\qquad
-    \\mu_{peak} \\to r\\, \\mu_{peak},
+    .. math::
 
-with ``mu_ref`` = :data:`REFERENCE_FRICTION` = 0.9 (dry asphalt): the nominal
-stiffness of model.md *is* the stiffness on a road of friction 0.9. With
-``tire_saturation:mu_peak=0.9`` in the base effects the peak friction equals
-the schedule's ``mu`` at every instant; without ``tire_saturation`` the tires
-stay linear and only the stiffness follows ``mu``.
+        \mu_{peak} \to r\,\mu_{peak},\qquad C_k \to C_k,\qquad
+        F_{ss} = r \mu_{peak} F_z \tanh\!\big(C\alpha / (r \mu_{peak} F_z)\big).
 
-Scaling the stiffness and the peak force together scales the whole tanh tire
-curve: ``F_ss = r mu_peak Fz tanh(r C alpha / (r mu_peak Fz)) = r F_ss,ref(alpha)``,
-i.e. the force at a given slip is ``mu/mu_ref`` times the reference road's.
-That is the model under which a stiffness estimate tells the friction
-(``assist.risk``).
+    Source: the brush model's cornering stiffness ``C_Fa = 2 c_p a^2`` (tread stiffness
+    times the square of the contact half-length) has no friction in it, while its force
+    saturates at ``mu Fz`` (Pacejka, *Tire and Vehicle Dynamics*, 3rd ed., 2012, sec. 3.2.2,
+    eqs. 3.26-3.31); in the Magic Formula the friction scaling factor ``lambda_muy``
+    multiplies the peak ``D_y = mu_y Fz`` and not the cornering stiffness ``K_ya``
+    (same book, sec. 4.3.2, eqs. 4.E13 and 4.E25). A wet road lowers the friction of the
+    sliding part of the contact, not the elasticity of the tread. The curve's shape is
+    effects.md's ``tanh``; its slope at zero slip is ``C`` whatever ``mu`` is, so at
+    ``|F| = 0.2 Fz`` the force at a given slip is 1.7 % below the linear tire's on a road
+    of 0.9 and 7.0 % below it on 0.45 (``tanh(x)/x``): that is all a tire-reading
+    estimator has to see a wet patch with at that load. Without ``tire_saturation`` in
+    the base effects the peak is added: ``tire_saturation:mu_peak = mu`` (the road's
+    friction *is* the peak), so a linear tire does not ignore the friction.
+``"stiffness_and_peak"`` (the earlier model, kept by name)
+    effects.md's ``tire_stiffness`` ("Road friction (mu) scales both equally") and
+    ``tire_saturation`` together: ``C_k -> r C_k`` (``front_scale``, ``rear_scale`` times
+    ``r``) and ``mu_peak -> r mu_peak``. The whole tanh curve scales, ``F_ss(alpha) = r
+    F_ss,ref(alpha)``, so a stiffness estimate tells the friction at any slip (the
+    assumption of :mod:`assist.risk.friction_estimate`'s stiffness mapping). It makes a
+    wet patch visible at small slip, which measured tires do not; without
+    ``tire_saturation`` the tires stay linear and only the stiffness follows ``mu``.
 
 Friction is piecewise linear between the schedule's points and constant
 outside them, in time [s] or in travelled distance [m] (a patch is a place on
@@ -40,7 +53,10 @@ Examples
 (0.9, 0.675, 0.45)
 >>> e = f.effects_at(0.45, "tire_saturation:mu_peak=0.9")
 >>> e.value("tire_stiffness", "front_scale"), e.value("tire_saturation", "mu_peak")
-(0.5, 0.45)
+(1.0, 0.45)
+>>> old = FrictionSchedule.patch(start=100.0, mu_before=0.9, mu_patch=0.45, scaling="stiffness_and_peak")
+>>> old.effects_at(0.45, "tire_saturation:mu_peak=0.9").value("tire_stiffness", "front_scale")
+0.5
 """
 
 from __future__ import annotations
@@ -62,6 +78,8 @@ REFERENCE_FRICTION = 0.9
 MU_QUANTUM = 1e-3
 #: Friction values a schedule may take [-] (effects.md bounds: stiffness scale and mu_peak >= 0.05).
 MU_RANGE = (0.05, 2.0)
+#: How the tire follows the road's friction (module docstring): the peak only (default), or stiffness and peak.
+SCALINGS = ("peak", "stiffness_and_peak")
 
 
 class FrictionScheduleError(ValueError):
@@ -82,6 +100,9 @@ class FrictionSchedule:
         What the positions measure (default: distance travelled, ``s = int vx dt``).
     mu_ref : float
         Friction of the road the nominal tires refer to (default :data:`REFERENCE_FRICTION`).
+    scaling : {"peak", "stiffness_and_peak"}
+        What the friction scales (module docstring): the tire's peak force only (default, a
+        measured wet road), or its stiffness and peak together (the earlier model).
 
     Examples
     --------
@@ -92,8 +113,11 @@ class FrictionSchedule:
     points: tuple[tuple[float, float], ...]
     by: str = "distance"
     mu_ref: float = REFERENCE_FRICTION
+    scaling: str = "peak"
 
     def __post_init__(self) -> None:
+        if self.scaling not in SCALINGS:
+            raise FrictionScheduleError(f"scaling must be one of {', '.join(SCALINGS)}, got {self.scaling!r}")
         if self.by not in ("distance", "time"):
             raise FrictionScheduleError(f"by must be 'distance' or 'time', got {self.by!r}")
         try:
@@ -116,13 +140,14 @@ class FrictionSchedule:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def constant(cls, mu: float, mu_ref: float = REFERENCE_FRICTION) -> "FrictionSchedule":
+    def constant(cls, mu: float, mu_ref: float = REFERENCE_FRICTION, scaling: str = "peak") -> "FrictionSchedule":
         """The same friction everywhere."""
-        return cls(((0.0, mu),), mu_ref=mu_ref)
+        return cls(((0.0, mu),), mu_ref=mu_ref, scaling=scaling)
 
     @classmethod
     def patch(cls, start: float, mu_before: float, mu_patch: float, length: float = math.inf,
-              ramp: float = 0.0, by: str = "distance", mu_ref: float = REFERENCE_FRICTION) -> "FrictionSchedule":
+              ramp: float = 0.0, by: str = "distance", mu_ref: float = REFERENCE_FRICTION,
+              scaling: str = "peak") -> "FrictionSchedule":
         """``mu_before`` up to ``start``, then ``mu_patch`` over ``length`` (default: to the end),
         with linear transitions of ``ramp`` (same unit as ``start``; 0: a step)."""
         for name, v in (("start", start), ("ramp", ramp)):
@@ -136,7 +161,7 @@ class FrictionSchedule:
         if math.isfinite(length):
             end = start + max(length, r + eps)
             pts += [(end, mu_patch), (end + r, mu_before)]
-        return cls(tuple(pts), by=by, mu_ref=mu_ref)
+        return cls(tuple(pts), by=by, mu_ref=mu_ref, scaling=scaling)
 
     # ------------------------------------------------------------------ queries
     def mu(self, t: float | None = None, s: float | None = None) -> float:
@@ -161,23 +186,40 @@ class FrictionSchedule:
         return np.interp(x, xs, ms)
 
     def effects_at(self, mu: float, base: Effects | Any = None) -> Effects:
-        """The dynamic effects of the plant on a road of friction ``mu``: ``base`` with both
-        stiffness scales and (if present) ``mu_peak`` multiplied by ``mu / mu_ref``."""
+        """The dynamic effects of the plant on a road of friction ``mu`` (module docstring):
+        ``"peak"``: ``base`` with ``mu_peak`` times ``mu / mu_ref`` (``tire_saturation:mu_peak = mu``
+        if ``base`` has none); ``"stiffness_and_peak"``: both stiffness scales and (if present)
+        ``mu_peak`` times ``mu / mu_ref``."""
         base = as_effects(base)
         r = float(mu) / self.mu_ref
-        extra: dict[str, dict[str, float]] = {
-            "tire_stiffness": {
+        extra: dict[str, dict[str, float]] = {}
+        if self.scaling == "stiffness_and_peak":
+            extra["tire_stiffness"] = {
                 "front_scale": float(base.value("tire_stiffness", "front_scale")) * r,
                 "rear_scale": float(base.value("tire_stiffness", "rear_scale")) * r,
             }
-        }
         if base.has("tire_saturation"):
             extra["tire_saturation"] = {"mu_peak": float(base.value("tire_saturation", "mu_peak")) * r}
+        elif self.scaling == "peak":
+            extra["tire_saturation"] = {"mu_peak": float(mu)}
         return base.dynamic | Effects(extra)
 
     def to_json(self) -> dict[str, Any]:
-        """``{"by", "mu_ref", "points": [[position, mu], ...]}``."""
-        return {"by": self.by, "mu_ref": self.mu_ref, "points": [list(p) for p in self.points]}
+        """``{"by", "mu_ref", "scaling", "points": [[position, mu], ...]}``."""
+        return {"by": self.by, "mu_ref": self.mu_ref, "scaling": self.scaling, "points": [list(p) for p in self.points]}
+
+    @classmethod
+    def from_json(cls, d: Any) -> "FrictionSchedule":
+        """The schedule of :meth:`to_json` (a log's sidecar ``truth.friction``); a dict without
+        ``scaling`` was written before the key existed, by the ``"stiffness_and_peak"`` model."""
+        if not isinstance(d, dict) or "points" not in d:
+            raise FrictionScheduleError(f"a friction schedule must be a dict with 'points', got {d!r}")
+        try:
+            pts = tuple(tuple(p) for p in d["points"])
+        except TypeError:
+            raise FrictionScheduleError(f"points must be (position, mu) pairs, got {d['points']!r}") from None
+        return cls(pts, by=d.get("by", "distance"), mu_ref=d.get("mu_ref", REFERENCE_FRICTION),
+                   scaling=d.get("scaling", "stiffness_and_peak"))
 
 
 class FrictionPlants:
@@ -234,4 +276,5 @@ __all__ = [
     "MU_QUANTUM",
     "MU_RANGE",
     "REFERENCE_FRICTION",
+    "SCALINGS",
 ]

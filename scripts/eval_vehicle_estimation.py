@@ -73,7 +73,7 @@ def risk_friction(v, seed: int) -> dict:
     lo, hi = v.control_range
     sc = make_scenario("double_lane_change", speed_kmh=round(1.8 * (lo + hi), 1), run_in_s=6.0, duration_s=20.0)
     ride = ride_scenario(sc, vehicle=v, effects="tire_saturation:mu_peak=0.9", noise_pct=5.0, seed=seed,
-                         friction=FrictionSchedule.constant(0.6))
+                         friction=FrictionSchedule.constant(0.6, scaling="stiffness_and_peak"))
     run = assess_log(ride.log)
     mu, inf = run.series("mu_hat"), run.series("friction_informed").astype(bool)
     return {"seed": seed, "fell": bool(ride.fell), "mu_true": 0.6,

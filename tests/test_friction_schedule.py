@@ -43,8 +43,8 @@ def test_schedule_asks_for_the_variable_it_is_indexed_by():
         FrictionSchedule.constant(0.9).mu(t=1.0)
 
 
-def test_effects_scale_stiffness_and_mu_peak_together():
-    f = FrictionSchedule.constant(0.45)
+def test_effects_scale_stiffness_and_mu_peak_together_in_the_earlier_model():
+    f = FrictionSchedule.constant(0.45, scaling="stiffness_and_peak")
     e = f.effects_at(0.45, [SAT, "tire_stiffness:front_scale=0.8"])
     assert e.value("tire_stiffness", "front_scale") == pytest.approx(0.4)
     assert e.value("tire_stiffness", "rear_scale") == pytest.approx(0.5)
@@ -53,15 +53,55 @@ def test_effects_scale_stiffness_and_mu_peak_together():
     assert not f.effects_at(0.45).has("tire_saturation")
 
 
-def test_whole_tire_curve_scales_with_friction():
+def test_peak_scaling_keeps_the_stiffness_and_gives_linear_tires_a_peak():
+    f = FrictionSchedule.constant(0.45)
+    assert f.scaling == "peak"
+    e = f.effects_at(0.45, [SAT, "tire_stiffness:front_scale=0.8"])
+    assert e.value("tire_stiffness", "front_scale") == pytest.approx(0.8)  # the tire's own, untouched
+    assert e.value("tire_stiffness", "rear_scale") == pytest.approx(1.0)
+    assert e.value("tire_saturation", "mu_peak") == pytest.approx(0.45)
+    assert f.effects_at(0.45).value("tire_saturation", "mu_peak") == pytest.approx(0.45)
+    with pytest.raises(FrictionScheduleError, match="scaling"):
+        FrictionSchedule.constant(0.45, scaling="both")
+
+
+def test_whole_tire_curve_scales_with_friction_in_the_earlier_model():
     """Stiffness and peak scaled together: F_ss at any slip is mu/mu_ref times the reference road's."""
     rng = np.random.default_rng(0)
     x = rng.normal(0.0, [0.2, 0.05, 0.5, 0.3, 0.3, 0.5, 0.0, 0.0], size=(200, 8))
-    fp = FrictionPlants(FrictionSchedule.constant(0.9), effects=SAT)
+    fp = FrictionPlants(FrictionSchedule.constant(0.9, scaling="stiffness_and_peak"), effects=SAT)
     ref = fp.plant(REFERENCE_FRICTION).steady_tire_force(x, 15.0)
     for mu in (0.3, 0.45, 0.7):
         np.testing.assert_allclose(fp.plant(mu).steady_tire_force(x, 15.0), mu / REFERENCE_FRICTION * ref,
                                    rtol=1e-9, atol=1e-9)
+
+
+def test_peak_scaling_keeps_the_small_slip_slope_and_lowers_the_peak_to_mu_fz():
+    """The wet road of Pacejka's brush model / Magic Formula (friction.py): same slope at zero slip on
+    every road, force bounded by mu Fz, and at |F| = 0.2 Fz the secant is tanh(x)/x of the road's peak."""
+    fp = FrictionPlants(FrictionSchedule.constant(0.9), effects=SAT)
+    tires = fp.plant(0.9).vehicle.tires
+    fz = np.array([tires.Fzf, tires.Fzr])
+    x = np.zeros((3, 8))
+    x[:, 2] = [1e-4, 1.0, 10.0]  # lateral velocity only: the same side slip on both axles [m/s at 15 m/s]
+    lin_f = compile_plant(None, None).steady_tire_force(x, 15.0)  # the linear tire
+    for mu in (0.9, 0.45, 0.2):
+        f = fp.plant(mu).steady_tire_force(x, 15.0)
+        np.testing.assert_allclose(f[0], lin_f[0], rtol=1e-6)  # small slip: the linear tire's force
+        assert np.all(np.abs(f[2]) <= mu * fz + 1e-9) and np.all(np.abs(f[2]) >= 0.99 * mu * fz)
+    # the secant at |F| = 0.2 Fz: 1 - tanh(x)/x for x = atanh(0.2/mu)
+    for mu, want in ((0.9, 0.0167), (0.45, 0.0697)):
+        xx = np.arctanh(0.2 / mu)
+        assert 1.0 - 0.2 / mu / xx == pytest.approx(want, abs=5e-4)
+
+
+def test_schedule_json_round_trip_and_old_sidecars():
+    f = FrictionSchedule.patch(start=10.0, mu_before=0.9, mu_patch=0.45, ramp=2.0)
+    assert FrictionSchedule.from_json(f.to_json()) == f
+    old = {"by": "distance", "mu_ref": 0.9, "points": [[10.0, 0.9], [12.0, 0.45]]}  # written before 'scaling'
+    assert FrictionSchedule.from_json(old).scaling == "stiffness_and_peak"
+    with pytest.raises(FrictionScheduleError):
+        FrictionSchedule.from_json({"by": "distance"})
 
 
 def test_plants_are_cached_per_quantised_value():
@@ -85,7 +125,8 @@ def _states(env, steps, tau=2.0):
 def test_env_with_a_time_step_in_friction_matches_the_plants_swapped_by_hand():
     """Truth of the env option: before the switch the nominal plant, after it the wet plant."""
     quiet = SensorConfig.noiseless()
-    sched = FrictionSchedule(((0.995, 0.9), (1.0, 0.45)), by="time")  # a step at t = 1 s
+    sched = FrictionSchedule(((0.995, 0.9), (1.0, 0.45)), by="time",
+                             scaling="stiffness_and_peak")  # a step at t = 1 s
     env = PTWRollEnv("double_lane_change", sensors=quiet, effects=SAT, friction=sched, init_roll_deg=0.0)
     X, mus = _states(env, 200)
     assert mus[0] == 0.9 and mus[-1] == 0.45

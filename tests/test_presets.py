@@ -146,7 +146,7 @@ def test_risk_reads_the_friction_of_each_preset(name):
     v = load_vehicle(name)
     sc = make_scenario("double_lane_change", speed_kmh=_speed_kmh(v), run_in_s=6.0, duration_s=20.0)
     ride = ride_scenario(sc, vehicle=v, effects="tire_saturation:mu_peak=0.9", noise_pct=5.0, seed=3,
-                         friction=FrictionSchedule.constant(0.6))
+                         friction=FrictionSchedule.constant(0.6, scaling="stiffness_and_peak"))
     assert not ride.fell
     run = assess_log(ride.log)  # the sidecar names the vehicle
     mu, inf = run.series("mu_hat"), run.series("friction_informed").astype(bool)

@@ -41,7 +41,7 @@ def estimator():
 @pytest.mark.parametrize("mu", [0.3, 0.45, 0.9, 1.1])
 def test_mu_hat_inverts_the_simulators_friction_scaling(mu):
     """The stiffness of the simulator's plant on a road of friction mu maps back to mu."""
-    e = FrictionSchedule.constant(mu).effects_at(mu, SAT)
+    e = FrictionSchedule.constant(mu, scaling="stiffness_and_peak").effects_at(mu, SAT)
     stiff = C0 * np.array([e.value("tire_stiffness", "front_scale")] * 2 + [e.value("tire_stiffness", "rear_scale")] * 2)
     m, s = stiffness_to_friction(stiff, 0.1 * C0)
     assert m == pytest.approx(mu, rel=1e-12)
@@ -88,7 +88,7 @@ def test_straight_riding_is_used_only_once_the_estimate_is_sure(estimator):
     (within 3 sigma of the truth at 95 % of the samples, not a guess); the lane change informs it by
     lateral acceleration, and it stays near the truth."""
     sc = make_scenario("double_lane_change", run_in_s=6.0, duration_s=20.0)
-    ride = ride_scenario(sc, effects=SAT, noise_pct=5.0, seed=3, friction=FrictionSchedule.constant(0.6))
+    ride = ride_scenario(sc, effects=SAT, noise_pct=5.0, seed=3, friction=FrictionSchedule.constant(0.6, scaling="stiffness_and_peak"))
     run = assess_log(ride.log, RiskPipeline(estimator))
     t = run.t
     straight = t < 5.5
@@ -285,7 +285,7 @@ def test_wrapper_adds_the_assessment_and_passes_check_env(estimator):
 def wet_log(tmp_path_factory):
     """A short simulated ride onto a wet patch, with the route's curvature as the map."""
     sc = make_scenario("slalom", duration_s=16.0, n_cones=3)
-    sched = FrictionSchedule.patch(start=60.0, mu_before=0.9, mu_patch=0.45, ramp=2.0)
+    sched = FrictionSchedule.patch(start=60.0, mu_before=0.9, mu_patch=0.45, ramp=2.0, scaling="stiffness_and_peak")
     r = ride_scenario(sc, effects=SAT, noise_pct=5.0, seed=2, friction=sched)
     r.log.columns["kappa"] = np.asarray(sc.profile(0.01).kappa[: len(r.log.t)])
     p = tmp_path_factory.mktemp("risk") / "wet.csv"

@@ -310,8 +310,7 @@ def truth_from_log(log, vehicle=None) -> tuple[np.ndarray, np.ndarray, np.ndarra
     try:
         effects = as_effects(truth.get("causes")) if truth.get("causes") else as_effects(None)
         fj = truth.get("friction")
-        sched = (FrictionSchedule(tuple(map(tuple, fj["points"])), by=fj.get("by", "distance"),
-                                  mu_ref=fj.get("mu_ref", 0.9)) if isinstance(fj, dict) else None)
+        sched = FrictionSchedule.from_json(fj) if isinstance(fj, dict) else None
     except (ValueError, KeyError, TypeError):
         return None
     t = np.asarray(log.t, dtype=float)
