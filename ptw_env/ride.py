@@ -18,7 +18,7 @@ import numpy as np
 
 from .env import PTWRollEnv
 from .logs import RideLog, write_log
-from .rider import LQRRider
+from .rider import LQRRider, bank_lean
 from .sensors import CHANNELS, SensorConfig
 from .vehicle import STATE_NAMES
 from .vehicle_files import sidecar_vehicle
@@ -68,6 +68,7 @@ def ride_scenario(
     sensors: SensorConfig | None = None,
     seed: int = 0,
     rider_noise_nm: float | None = None,
+    hold_line: bool = False,
     **env_kwargs: Any,
 ) -> RideResult:
     """Ride ``scenario`` with the LQR rider and return the ride log and the truth.
@@ -78,6 +79,13 @@ def ride_scenario(
     ... ``x_Fyr`` and the true speed to ``vx_true``, as in the reference logs;
     with ``friction=`` (a :class:`~ptw_env.friction.FrictionSchedule`, passed
     to the environment) the true road friction goes to ``mu_true``.
+
+    ``hold_line``: on a banked road (effects.md ``road_bank``) the rider adds to the scenario's roll
+    reference the lean at which the vehicle runs straight there (:func:`ptw_env.rider.bank_lean`,
+    about the bank: upright in gravity), as a rider holding the road's line does; by default
+    (False) the rider keeps the road-relative roll of the scenario and the vehicle turns slowly
+    downhill on a banked straight (a yaw rate of -0.5 to -0.6 times the bank [rad/s] on the
+    reference scooter's urban rides, measured through ``assist.risk.BankEstimate``).
     """
     env = PTWRollEnv(scenario=scenario, speed_kmh=speed_kmh, effects=effects, noise_pct=noise_pct,
                      sensors=sensors, **env_kwargs)
@@ -89,9 +97,17 @@ def ride_scenario(
     rider.reset(np.random.default_rng(np.random.SeedSequence([seed, 1])))
     rows_y, rows_x, taus, vxs, refs, ts, mus = [], [], [], [], [], [], []
     reason, fell = "scenario_end", False
+    bank = float(env.effects.value("road_bank", "bank_rad")) if hold_line and env.effects.has("road_bank") else 0.0
+    leans: dict[float, float] = {}
     while True:
         x = info["state"]
-        tau = rider.torque(x, info["vx"], info["phi_ref"])
+        lean = 0.0
+        if bank:
+            key = round(float(info["vx"]), 1)
+            if key not in leans:
+                leans[key] = bank_lean(prior.vehicle, bank, max(key, 0.1))
+            lean = leans[key]
+        tau = rider.torque(x, info["vx"], info["phi_ref"] + lean)
         rows_y.append(info["measurement"])
         rows_x.append(x)
         taus.append(tau)

@@ -486,11 +486,45 @@ class LQRRider:
         return float(tau)
 
 
+def bank_lean(vehicle: Vehicle | None, bank_rad: float, vx: float) -> float:
+    """Roll relative to the road normal [rad] at which ``vehicle`` runs straight (yaw rate 0) on a road of
+    cross-slope ``bank_rad`` [rad] at ``vx`` [m/s]: the steady state of the linearised plant with
+    effects.md's ``road_bank`` (row 3 gets ``-M g sin(beta)``, rows 5-6 ``sin(phi - beta)``),
+
+    .. math::
+
+        A x + B \\tau + e(\\beta) = 0,\\qquad r = x_4 = 0,
+
+    nine equations for the eight states and the torque. About ``beta`` itself (the vehicle upright in
+    gravity): a rider who holds a straight line on a banked road leans by it, relative to the road,
+    where a rider who keeps the road-relative roll at zero turns downhill.
+
+    >>> round(bank_lean(None, 0.03, 15.0) / 0.03, 3)
+    1.005
+    """
+    from .dynamics import compile_plant
+
+    vx = float(vx)
+    eps = 1e-6
+    p0 = compile_plant(vehicle, None)
+    pb = compile_plant(vehicle, f"road_bank:bank_rad={float(bank_rad)!r}")
+    x0 = np.zeros(8)
+    f0 = p0.rhs(x0, 0.0, vx)
+    A = np.column_stack([(p0.rhs(x0 + eps * e, 0.0, vx) - f0) / eps for e in np.eye(8)])
+    M = np.zeros((9, 9))
+    M[:8, :8] = A
+    M[:8, 8] = (p0.rhs(x0, eps, vx) - f0) / eps
+    M[8, 3] = 1.0
+    sol = np.linalg.solve(M, np.concatenate([f0 - pb.rhs(x0, 0.0, vx), [0.0]]))
+    return float(sol[PHI])
+
+
 __all__ = [
     "GainSchedule",
     "LQRDesignError",
     "LQRRider",
     "RiderError",
+    "bank_lean",
     "default_weights",
     "lqr_gain",
     "steady_turn",

@@ -1,25 +1,33 @@
-"""Evaluate the risk warning (issue 5) on seeded rides with tire saturation on.
+"""Evaluate the risk warning (issues 5 and 20) on seeded rides with tire saturation on.
 
-Ride types (:mod:`assist.risk.evaluation`): ``dry`` (urban at 0.5 g, friction
-0.9: no false alarm wanted), ``wet`` (the same ride onto a wet patch, friction
-0.9 -> 0.45 at mid-ride distance, unchanged pace), ``dry_long`` / ``wet_long``
-(the same with 2.5 s curve entries), ``too_fast`` (a damp road, warm-up
-curves, then a curve entered at 1.2-1.35 times the speed the friction
-allows). Every ride: 5 % sensor noise, its own seed for route, sensors and
-rider.
+Ride types (:mod:`assist.risk.evaluation`; default the six of issue 20, ``EVAL_KINDS``): ``dry``
+(urban at 0.5 g, friction 0.9), ``dry_bank`` (on a cross-fall of 0.015-0.04 rad), ``dry_offsets``
+(a yaw-gyro bias of 0.01 rad/s and an accelerometer offset of 0.1 m/s^2), ``wet_straight`` and
+``wet_corner`` (the same ride onto a wet patch, friction 0.9 -> 0.45, beginning on a straight or in
+a corner at 0.25-0.45 g), ``too_fast`` (a damp road, warm-up curves, then a curve entered at
+1.2-1.35 times the speed the friction allows); also ``wet``, ``wet_long``, ``dry_long``,
+``wet_bank`` of the earlier evaluation. Every ride: 5 % sensor noise, its own seed for route,
+sensors and rider. Tires: friction scales the peak (``--scaling peak``, the default) or, the
+earlier model, stiffness and peak (``--scaling stiffness_and_peak``).
 
-For every saturation event (``|F_ss| >= 0.95 Fmax`` on either axle, from the
-true state) the lead time of the warning active at that instant is
-measured, for caution (level >= caution) and for danger separately. On the
-dry rides the warning episodes are false alarms (the script checks that the
-dry rides never saturate and reports their peak true utilisation).
+Targets (issue 20), each summarised in ``results.md``:
 
-Writes ``results.json``, ``results.md`` (the table) and ``timeline_<type>.png``
-(one seed per type) into ``--out``.
+* lead: every loss of grip (``|F_ss| >= 0.95 Fmax`` on either axle, from the true state) 1 s or
+  more after the friction drop (or the curve entry) has a caution at least 0.5 s ahead;
+* latency: after a drop under tires using ``|F|/Fz >= 0.2``, a caution within 0.3 s (median and
+  95th percentile);
+* false warnings: no danger, and a caution on at most 2 % of the dry rides.
+
+Beside each, what an oracle that reads the tires with the true state could do
+(:func:`assist.risk.evaluation.information_onset`): the earliest instant the tires have told the
+wet road from the dry one, at 2 standard errors of 0.3 s of accelerometer noise.
+
+Writes ``results.json``, ``rides.json``, ``results.md`` and ``timeline_<type>.png`` (one seed
+per type) into ``--out``.
 
 Usage::
 
-    python scripts/eval_risk.py --seeds 20 --workers 2   # writes out/risk/
+    python scripts/eval_risk.py --workers 2          # 40 seeds (1000-1039) per type, writes out/risk/
 """
 
 from __future__ import annotations
@@ -34,7 +42,9 @@ import numpy as np
 from ptw_env.cli import road_bank
 from ptw_env.jobs import JobsError, run_jobs
 
-from assist.risk.evaluation import KINDS, WARNABLE_S, estimator_figures, make_case, run_case
+from assist.risk.evaluation import (EVAL_KINDS, KINDS, LATENCY_LOAD, LATENCY_S, WARNABLE_S, estimator_figures, make_case,
+                                    run_case)
+from ptw_env.friction import SCALINGS
 from assist.risk.offline import plot_risk, replay
 from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
 
@@ -48,22 +58,27 @@ _ROAD_BANK: float | str | None = "auto"
 
 
 def _one(args: tuple) -> dict:
-    """One ride: ``(kind, seed, figure path or None, road bank setting)``; everything the job needs is in
-    its arguments (a spawned worker or a Dask worker does not see this process's globals)."""
-    kind, seed, fig, bank = args
+    """One ride: ``(kind, seed, figure path or None, road bank setting, friction scaling)``; everything the
+    job needs is in its arguments (a spawned worker or a Dask worker does not see this process's globals)."""
+    kind, seed, fig, bank, scaling = args
     from assist.risk.pipeline import RiskPipeline, default_estimator
 
-    key = repr(bank)
-    if key not in _PIPES:
-        _PIPES[key] = RiskPipeline(default_estimator(5.0), road_bank=bank)
-    pipe = _PIPES[key]
+    from assist.risk.friction_estimate import FrictionConfig, FrictionEstimate
     from assist.risk.monitor import RiskConfig, RiskMonitor
 
+    key = repr((bank, scaling))
+    if key not in _PIPES:  # the friction reading that matches the tires: their bend (peak) or their slope
+        tire = "peak" if scaling == "peak" else "stiffness"
+        _PIPES[key] = RiskPipeline(default_estimator(5.0), road_bank=bank,
+                                   monitor=RiskMonitor(friction=FrictionEstimate(FrictionConfig(tire=tire))))
+    pipe = _PIPES[key]
+
     t0 = time.perf_counter()
-    res = run_case(make_case(kind, seed), pipeline=pipe)
+    res = run_case(make_case(kind, seed, scaling), pipeline=pipe)
     out = {}
     for name, over in VARIANTS.items():
-        run = res.run if not over else replay(res.run, RiskMonitor(RiskConfig(**over)))
+        run = res.run if not over else replay(res.run, RiskMonitor(RiskConfig(**over), friction=FrictionEstimate(
+            pipe.monitor.friction.config)))
         s = res.summary(run)
         w = run.warnings()
         s["warning_reasons"] = [e["reason"] for e in w][:6]
@@ -239,12 +254,87 @@ def markdown(summary: dict, n: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _pct(x: list[float], q: float) -> float | None:
+    return None if not x else round(float(np.percentile(np.asarray(x, dtype=float), q)), 3)
+
+
+def targets(rides: list[dict]) -> dict:
+    """Issue 20's targets per ride type: lead, latency and false warnings, with the oracle beside them."""
+    out: dict = {}
+    for kind in KINDS:
+        rs = [r for r in rides if r["kind"] == kind]
+        if not rs:
+            continue
+        d: dict = {"rides": len(rs)}
+        ev = [e for r in rs for e in r["events"] if e.get("after_reference_s") is not None]
+        late = [e for e in ev if e["after_reference_s"] >= WARNABLE_S]
+        if ev:
+            miss = [e for e in late if (e["caution"]["lead_s"] or 0.0) < 0.5]
+            d["lead"] = {"events": len(ev), "events_1s_after": len(late),
+                         "warned_0p5s": len(late) - len(miss),
+                         "missed": [{"seed": r["seed"], "t": round(e["t"], 2),
+                                     "after_reference_s": round(e["after_reference_s"], 2),
+                                     "caution_lead_s": None if e["caution"]["lead_s"] is None
+                                     else round(e["caution"]["lead_s"], 2),
+                                     "information_lead_bound_s": None if e["information_lead_bound_s"] is None
+                                     else round(e["information_lead_bound_s"], 2)}
+                                    for r in rs for e in r["events"] if e in miss],
+                         "oracle_warnable_0p5s": sum(1 for e in late if (e["information_lead_bound_s"] or 0.0) >= 0.5),
+                         # every loss of grip, also those within WARNABLE_S of the drop / curve entry
+                         "all_warned_0p5s": sum(1 for e in ev if (e["caution"]["lead_s"] or 0.0) >= 0.5),
+                         "all_oracle_0p5s": sum(1 for e in ev if (e["information_lead_bound_s"] or 0.0) >= 0.5),
+                         "all_caution_lead_s": _stats([e["caution"]["lead_s"] for e in ev
+                                                       if e["caution"]["lead_s"] is not None])}
+        lat = [r["latency"] for r in rs if r.get("latency") and kind.startswith("wet")
+               and r["latency"]["load_at_reference"] >= LATENCY_LOAD]
+        if lat:
+            c = [x["caution_after_s"] for x in lat if x["caution_after_s"] is not None]
+            o = [x["information_after_s"] for x in lat if x["information_after_s"] is not None]
+            d["latency"] = {"rides_loaded": len(lat), "caution_within": sum(1 for x in c if x <= LATENCY_S),
+                            "caution_never": len(lat) - len(c), "caution_median_s": _pct(c, 50),
+                            "caution_p95_s": _pct(c, 95), "oracle_within": sum(1 for x in o if x <= LATENCY_S),
+                            "oracle_median_s": _pct(o, 50), "oracle_p95_s": _pct(o, 95)}
+        if kind.startswith("dry"):
+            d["false"] = {"rides_with_danger": sum(1 for r in rs if r["danger_episodes"] > 0),
+                          "rides_with_caution": sum(1 for r in rs if r["caution_episodes"] > 0),
+                          "caution_share": round(sum(1 for r in rs if r["caution_episodes"] > 0) / len(rs), 4)}
+        out[kind] = d
+    return out
+
+
+def targets_markdown(tg: dict, scaling: str) -> str:
+    """The table of :func:`targets`."""
+    lines = [f"Issue 20's targets, tires with friction scaling '{scaling}' (5 % sensor noise). Oracle: a reader of the "
+             "tires that knows the true state, sure at 2 standard errors of 0.3 s of accelerometer noise.", "",
+             "| ride | rides | lead: losses of grip >= 1 s after drop/entry, caution >= 0.5 s ahead (oracle could) "
+             "| every loss of grip: caution >= 0.5 s ahead (oracle could); median lead [s] "
+             "| latency: loaded drops (|F|/Fz >= 0.2), caution <= 0.3 s; median / p95 [s] (oracle) "
+             "| false: rides with danger / caution (share) |", "|---|---|---|---|---|---|"]
+    for kind, d in tg.items():
+        le = d.get("lead")
+        la = d.get("latency")
+        fa = d.get("false")
+        lead = "-" if not le else f"{le['warned_0p5s']} of {le['events_1s_after']} ({le['oracle_warnable_0p5s']})"
+        alle = "-" if not le else (f"{le['all_warned_0p5s']} of {le['events']} ({le['all_oracle_0p5s']}); "
+                                   f"{le['all_caution_lead_s']['median']}")
+        lat = "-" if not la else (f"{la['caution_within']} of {la['rides_loaded']} ({la['caution_never']} never); "
+                                  f"{la['caution_median_s']} / {la['caution_p95_s']} (oracle {la['oracle_within']} of "
+                                  f"{la['rides_loaded']}; {la['oracle_median_s']} / {la['oracle_p95_s']})")
+        fal = "-" if not fa else f"{fa['rides_with_danger']} / {fa['rides_with_caution']} ({100 * fa['caution_share']:.1f} %)"
+        lines.append(f"| {kind} | {d['rides']} | {lead} | {alle} | {lat} | {fal} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 epilog="example: python scripts/eval_risk.py --seeds 20 --workers 2")
-    p.add_argument("--seeds", type=int, default=20, help="seeds per ride type (default 20)")
-    p.add_argument("--first-seed", type=int, default=0)
-    p.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated ride types (default {','.join(KINDS)})")
+    p.add_argument("--seeds", type=int, default=40, help="seeds per ride type (default 40)")
+    p.add_argument("--first-seed", type=int, default=1000,
+                   help="first seed (default 1000: seeds 1000-1039, fixed before the first run of issue 20's evaluation)")
+    p.add_argument("--kinds", default=",".join(EVAL_KINDS),
+                   help=f"comma-separated ride types (default {','.join(EVAL_KINDS)}; known: {','.join(KINDS)})")
+    p.add_argument("--scaling", default="peak", choices=SCALINGS,
+                   help="what road friction scales in the tires: the peak (default) or stiffness and peak (earlier model)")
     p.add_argument("--workers", type=int, default=1, help="local processes (default 1), or the size of a local "
                                                          "Dask cluster with --scheduler local")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -275,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
             for k in kinds for s in range(a.first_seed, a.first_seed + a.seeds)]
     t0 = time.perf_counter()
     try:  # the execution layer: serial, local processes (--workers) or a Dask cluster (--scheduler)
-        done = run_jobs(_one, [((k, s), ((k, s, fig, _ROAD_BANK),)) for k, s, fig in jobs], workers=a.workers,
+        done = run_jobs(_one, [((k, s), ((k, s, fig, _ROAD_BANK, a.scaling),)) for k, s, fig in jobs], workers=a.workers,
                         scheduler=a.scheduler, desc="rides")
     except JobsError as e:
         p.error(str(e))
@@ -284,10 +374,12 @@ def main(argv: list[str] | None = None) -> int:
     (out / "rides.json").write_text(json.dumps(rides, indent=1, allow_nan=False, default=float) + "\n")
     summary = {v: summarise(rides, v) for v in VARIANTS}
     est = estimator_summary(rides)
-    res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "road_bank": _ROAD_BANK, "variants": VARIANTS, "summary": summary,
+    tg = targets(rides)
+    res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "road_bank": _ROAD_BANK, "scaling": a.scaling,
+           "variants": VARIANTS, "targets": tg, "summary": summary,
            "estimator": est, "rides": rides, "seconds": round(time.perf_counter() - t0, 1)}
     (out / "results.json").write_text(json.dumps(res, indent=1, allow_nan=False, default=float) + "\n")
-    md = "\n".join(f"### monitor: {v} {VARIANTS[v] or '(defaults)'}\n\n" + markdown(summary[v], a.seeds)
+    md = "### targets (issue 20)\n\n" + targets_markdown(tg, a.scaling) + "\n" + "\n".join(f"### monitor: {v} {VARIANTS[v] or '(defaults)'}\n\n" + markdown(summary[v], a.seeds)
                    for v in VARIANTS) + "\n### friction estimate vs truth\n\n" + estimator_markdown(est)
     (out / "results.md").write_text(md)
     print(md)

@@ -37,6 +37,12 @@ def estimator():
     return default_estimator(5.0)
 
 
+def _stiff() -> FrictionEstimate:
+    """The friction reading of roads that scale the whole tire curve (stiffness tells the friction): the
+    model these unit tests feed (their stiffness inputs stand for that road's)."""
+    return FrictionEstimate(FrictionConfig(tire="stiffness"))
+
+
 # ------------------------------------------------------------------ friction from stiffness
 @pytest.mark.parametrize("mu", [0.3, 0.45, 0.9, 1.1])
 def test_mu_hat_inverts_the_simulators_friction_scaling(mu):
@@ -65,7 +71,7 @@ def test_mu_hat_refuses_bad_stiffness(bad):
 
 def test_uncertainty_grows_while_not_excited_and_the_estimate_is_held():
     """The lateral gate, for an estimator that drifts when unexcited (excitation_min = 1 m/s^2)."""
-    fe = FrictionEstimate(FrictionConfig(walk=0.05, excitation_min=1.0))
+    fe = FrictionEstimate(FrictionConfig(walk=0.05, excitation_min=1.0, tire="stiffness"))
     for k in range(100):  # informed cornering at scale 0.5
         st = fe.update(0.01 * k, 0.5 * C0, 0.05 * C0, ay=3.0)
     assert st.informed and st.mu_hat == pytest.approx(0.45)
@@ -89,7 +95,7 @@ def test_straight_riding_is_used_only_once_the_estimate_is_sure(estimator):
     lateral acceleration, and it stays near the truth."""
     sc = make_scenario("double_lane_change", run_in_s=6.0, duration_s=20.0)
     ride = ride_scenario(sc, effects=SAT, noise_pct=5.0, seed=3, friction=FrictionSchedule.constant(0.6, scaling="stiffness_and_peak"))
-    run = assess_log(ride.log, RiskPipeline(estimator))
+    run = assess_log(ride.log, RiskPipeline(estimator, tire="stiffness"))
     t = run.t
     straight = t < 5.5
     true_ay = np.abs(ride.log.columns["x_Fyf"] + ride.log.columns["x_Fyr"]) / REFERENCE_SCOOTER.mass
@@ -139,7 +145,7 @@ def test_grip_runs_out_at_the_safe_speed_in_the_simulator():
 def _levels(u: np.ndarray, cfg: RiskConfig) -> np.ndarray:
     """Levels for a front-tire utilisation ``u``; the riding-style caution is switched off (it would see
     the high lateral demand itself and hold a caution, which is not what these tests look at)."""
-    mon = RiskMonitor(dataclasses.replace(cfg, style_enter=1e3, style_exit=1e3))
+    mon = RiskMonitor(dataclasses.replace(cfg, style_enter=1e3, style_exit=1e3), friction=_stiff())
     fz = mon.fz
     out = []
     for k, uk in enumerate(u):  # informed, mu_hat = 0.45; front force sets the utilisation
@@ -174,14 +180,14 @@ def test_dwell_limits_changes_when_the_signal_crosses_both_thresholds():
 
 
 def test_levels_and_reasons_follow_the_risk_index():
-    mon = RiskMonitor()
+    mon = RiskMonitor(friction=_stiff())
     fz = mon.fz
     path = PathAhead(np.array([0.0, 30.0, 60.0]), np.array([0.0, 1 / 80, 1 / 80]))
     a = mon.update(0.0, 0.5 * C0, 0.02 * C0, vx=12.0, ay=2.0, forces=(0.2 * fz[0], 0.2 * fz[1]), path=path)
     assert a.level == "safe" and a.reason.startswith("safe:")
     # the rider has been cornering at 0.5 g on a dry road; the grip then drops to 0.45 on a straight: the
     # usual riding would need 111 % of it (> the 70 % margin): caution at once, no curve in sight yet
-    style = RiskMonitor()
+    style = RiskMonitor(friction=_stiff())
     for k in range(600):  # 3 s of cornering at 0.5 g, then 3 s straight, on the dry road
         style.update(0.01 * k, C0, 0.02 * C0, vx=15.0, ay=0.5 * G if k < 300 else 0.0, forces=None, path=None)
     assert style.last.level == "safe" and style.last.usual_demand == pytest.approx(0.5, rel=0.02)
@@ -201,7 +207,7 @@ def test_levels_and_reasons_follow_the_risk_index():
 
 def test_a_warning_held_down_one_level_says_why_in_its_own_words():
     """danger -> caution because the grip was low a moment ago: the level and its reason agree."""
-    mon = RiskMonitor()
+    mon = RiskMonitor(friction=_stiff())
     kappa = 1.1 * 0.45 * G / 20.0**2  # the curve now needs 110 % of a 0.45 grip at 20 m/s
     path = PathAhead(np.array([0.0, 40.0]), np.array([kappa, kappa]))
     levels = []
@@ -215,7 +221,7 @@ def test_a_warning_held_down_one_level_says_why_in_its_own_words():
 
 
 def test_monitor_refuses_bad_input_with_a_clear_message():
-    mon = RiskMonitor()
+    mon = RiskMonitor(friction=_stiff())
     with pytest.raises(ValueError, match="vx"):
         mon.update(0.0, C0, C0 * 0.1, vx=-3.0, ay=0.0)
     with pytest.raises(ValueError, match="forces"):
@@ -331,13 +337,14 @@ def test_cli_bad_log_one_line_exit_2(tmp_path, capsys, content, where):
 def test_offline_replay_gives_the_same_assessments(wet_log, estimator):
     from ptw_env.logs import read_log
 
-    run = assess_log(read_log(wet_log), RiskPipeline(estimator))
-    again = replay(run, RiskMonitor())
+    run = assess_log(read_log(wet_log), RiskPipeline(estimator, tire="stiffness"))
+    again = replay(run, RiskMonitor(friction=_stiff()))
     assert [a.level for a in again.assessments] == [a.level for a in run.assessments]
     np.testing.assert_array_equal(again.series("risk_index"), run.series("risk_index"))
     assert run.level_code.max() > 0
-    deaf = replay(run, RiskMonitor(RiskConfig(caution_enter=1e3, caution_exit=1e3, danger_enter=1e3,
-                                              danger_exit=1e3, style_enter=1e3, style_exit=1e3, confirm_sigmas=0.0)))
+    deaf = replay(run, RiskMonitor(friction=_stiff(), config=RiskConfig(
+        caution_enter=1e3, caution_exit=1e3, danger_enter=1e3, danger_exit=1e3, style_enter=1e3, style_exit=1e3,
+        confirm_sigmas=0.0)))
     assert deaf.level_code.max() == 0  # the replay really uses the other monitor
 
 
@@ -354,8 +361,10 @@ def test_cli_road_bank_must_be_an_angle_in_rad(tmp_path, capsys, value, words):
 
 @pytest.fixture(scope="module")
 def banked_log():
-    """A 90 s urban ride, dry (friction 0.9), 5 % noise, on a 0.03 rad road bank."""
-    return ride_scenario("urban", effects={"road_bank": {"bank_rad": 0.03}}, noise_pct=5.0, seed=2).log
+    """A 90 s urban ride, dry (friction 0.9), 5 % noise, on a 0.03 rad road bank; the rider holds the line
+    (on straights the yaw rate is zero, which the gyro-bias estimate relies on)."""
+    return ride_scenario("urban", effects={"road_bank": {"bank_rad": 0.03}}, noise_pct=5.0, seed=2,
+                         hold_line=True).log
 
 
 def test_road_bank_estimated_on_line_keeps_the_friction_estimate(banked_log):
@@ -363,8 +372,8 @@ def test_road_bank_estimated_on_line_keeps_the_friction_estimate(banked_log):
     and the friction estimate stays near 0.9, where the level-road model is biased by the bank."""
     from assist.risk.pipeline import default_estimator
 
-    level = assess_log(banked_log, RiskPipeline(default_estimator(5.0), road_bank=None))
-    pipe = RiskPipeline(default_estimator(5.0))  # road_bank="auto", the default
+    level = assess_log(banked_log, RiskPipeline(default_estimator(5.0), road_bank=None, tire="stiffness"))
+    pipe = RiskPipeline(default_estimator(5.0), tire="stiffness")  # road_bank="auto", the default
     pipe.bank_estimate.record = True
     auto = assess_log(banked_log, pipe)
     b = np.asarray(pipe.bank_estimate.history)

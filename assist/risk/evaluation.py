@@ -2,8 +2,11 @@
 
 Ride types (all with ``tire_saturation:mu_peak=0.9`` and a
 :class:`~ptw_env.friction.FrictionSchedule`, so the true peak friction is the
-schedule's ``mu`` and the stiffness scales with it; 5 % sensor noise; the
-scenario's LQR rider, :func:`ptw_env.ride.ride_scenario`):
+schedule's ``mu``; by default friction scales the tire's *peak* only, its
+small-slip stiffness stays (``scaling="peak"``, a wet road as measured tires
+see it, :mod:`ptw_env.friction`); ``make_case(..., scaling="stiffness_and_peak")``
+rides the earlier model; 5 % sensor noise; the scenario's LQR rider,
+:func:`ptw_env.ride.ride_scenario`):
 
 ``dry``
     The urban scenario ridden at a brisk normal pace, ``lateral_g = 0.5``
@@ -12,12 +15,23 @@ scenario's LQR rider, :func:`ptw_env.ride.ride_scenario`):
 ``wet``
     The same ride (same route and pace) onto a wet patch: ``mu`` drops from
     0.9 to 0.45 (over 2 m) at mid-ride distance and stays there.
+``wet_straight``, ``wet_corner``
+    The same patch, beginning on a straight (the first sample after mid-ride with no curvature in
+    the second before and the :data:`STRAIGHT_AHEAD_S` after) or in a corner (the first sample
+    after mid-ride (else after the first quarter, else from the start) where the route's demand ``v^2 |kappa| / g``
+    reaches a level drawn from :data:`CORNER_DEMAND_G`, 0.25-0.45 g: the tires carry a fifth to a
+    half of their load sideways).
 ``dry_long``, ``wet_long``
     The same with curve entries of 2.5 s instead of 1.2 s (``ramp_s``;
     rural-road clothoids instead of urban corners).
 ``dry_bank``, ``wet_bank``
     ``dry`` and ``wet`` on a road with a cross-fall (effects.md ``road_bank``), drawn from the
-    seed: 0.015-0.04 rad, either sign (roads are built with 0.02-0.04 for drainage).
+    seed: 0.015-0.04 rad, either sign (roads are built with 0.02-0.04 for drainage). The rider holds
+    the line on it (:func:`ptw_env.ride.ride_scenario` ``hold_line``: leans by about the bank on a
+    straight, instead of turning slowly downhill).
+``dry_offsets``
+    ``dry`` with a yaw-rate gyro bias of 0.01 rad/s and a lateral accelerometer offset of
+    0.1 m/s^2 (:data:`OFFSETS`, signs drawn from the seed).
 ``too_fast``
     :class:`CurveTooFast`: a damp road (``mu`` 0.55-0.62 throughout, drawn
     from the seed), three warm-up curves at 0.3 g, a straight, then a curve
@@ -50,7 +64,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ptw_env.effects import as_effects
-from ptw_env.friction import FrictionPlants, FrictionSchedule
+from ptw_env.friction import SCALINGS, FrictionPlants, FrictionSchedule
 from ptw_env.scenarios import (Scenario, ScenarioError, require_positive, Segment, segments_to_grid, space_based,
                                speed_plan, make_scenario)
 from ptw_env.vehicle import G, REFERENCE_SCOOTER
@@ -64,7 +78,23 @@ SATURATION_FRACTION = 0.95
 #: warned 0.5 s ahead by reading the tires: ~0.3-0.5 s of lateral force to see it, plus the 0.5 s lead.
 WARNABLE_S = 1.0
 #: Ride types of :func:`make_case`.
-KINDS = ("dry", "wet", "dry_long", "wet_long", "too_fast", "dry_bank", "wet_bank")
+KINDS = ("dry", "wet", "dry_long", "wet_long", "too_fast", "dry_bank", "wet_bank", "dry_offsets", "wet_straight",
+         "wet_corner")
+#: The ride types of issue 20's evaluation (``scripts/eval_risk.py`` default).
+EVAL_KINDS = ("dry", "dry_bank", "dry_offsets", "wet_straight", "wet_corner", "too_fast")
+#: Sensor offsets of the ``dry_offsets`` rides: yaw-rate gyro bias [rad/s] and lateral accelerometer offset
+#: [m/s^2] (issue 20), each with a sign drawn from the seed.
+OFFSETS = {"yaw_rate": 0.01, "ay": 0.1}
+#: A wet patch "in a corner" starts where the route's lateral demand ``v^2 |kappa| / g`` first reaches a level drawn
+#: from this range [g] after mid-ride; "on a straight" where the route is straight for the next
+#: :data:`STRAIGHT_AHEAD_S` of riding and was for the last second [-].
+CORNER_DEMAND_G = (0.25, 0.45)
+STRAIGHT_AHEAD_S = 2.0
+#: The latency target applies when the more loaded axle uses at least this share of its load sideways at the drop
+#: (issue 20: ``|F| / Fz >= 0.2``, when the tires carry information about the new friction).
+LATENCY_LOAD = 0.2
+#: A warning within this time of the drop meets the latency target [s].
+LATENCY_S = 0.3
 
 
 @dataclass(frozen=True)
@@ -142,7 +172,7 @@ class CurveTooFast(Scenario):
 
 @dataclass(frozen=True)
 class RideCase:
-    """One evaluation ride: scenario, friction schedule, effects, noise and seed."""
+    """One evaluation ride: scenario, friction schedule, effects, noise, sensor offsets and seed."""
 
     kind: str
     seed: int
@@ -151,35 +181,76 @@ class RideCase:
     effects: Any = EVAL_EFFECTS
     noise_pct: float = 5.0
     notes: dict = field(default_factory=dict)
+    #: constant sensor offsets per channel (``SensorConfig.bias``), physical units
+    bias: dict = field(default_factory=dict)
 
 
-def make_case(kind: str, seed: int) -> RideCase:
-    """The ride of type ``kind`` (one of :data:`KINDS`) for ``seed`` (module docstring)."""
+def _patch_start(prof, kind: str, rng: np.random.Generator) -> tuple[int, dict[str, Any]]:
+    """Sample index where the wet patch of ``kind`` begins (after mid-ride), and its notes."""
+    n = len(prof.t)
+    dt = float(prof.t[1] - prof.t[0])
+    demand = prof.vx**2 * np.abs(prof.kappa) / G
+    mid = n // 2
+    if kind == "wet_corner":
+        level = float(rng.uniform(*CORNER_DEMAND_G))
+        for start in (mid, n // 4, 0):  # after mid-ride; on a route whose later corners are gentler, earlier
+            k = start + np.flatnonzero(demand[start:] >= level)
+            if k.size:
+                return int(k[0]), {"corner_demand_g": level}
+        raise ScenarioError(f"wet_corner: no corner of the route reaches {level:.2f} g")
+    if kind == "wet_straight":
+        ahead, back = int(round(STRAIGHT_AHEAD_S / dt)), int(round(1.0 / dt))
+        straight = np.abs(prof.kappa) < 1e-9
+        for k in range(max(mid, back), n - ahead):
+            if straight[k - back:k + ahead].all():
+                return k, {}
+        raise ScenarioError("wet_straight: no straight after mid-ride")
+    return mid, {}
+
+
+def make_case(kind: str, seed: int, scaling: str = "peak") -> RideCase:
+    """The ride of type ``kind`` (one of :data:`KINDS`) for ``seed`` (module docstring), on tires whose
+    friction ``scaling`` is ``"peak"`` (default) or ``"stiffness_and_peak"`` (:mod:`ptw_env.friction`)."""
     if kind not in KINDS:
         raise ValueError(f"unknown ride type {kind!r}; known: {', '.join(KINDS)}")
+    if scaling not in SCALINGS:
+        raise ValueError(f"unknown friction scaling {scaling!r}; known: {', '.join(SCALINGS)}")
     seed = int(seed)
     if kind == "too_fast":
         rng = np.random.default_rng(np.random.SeedSequence([seed, 77]))
         mu = float(rng.uniform(0.55, 0.62))
         sc = CurveTooFast(speed_kmh=float(rng.uniform(60.0, 80.0)), mu_road=mu,
                           overspeed=float(rng.uniform(1.2, 1.35)), seed=seed)
-        return RideCase(kind, seed, sc, FrictionSchedule.constant(mu), notes={"mu_road": mu,
-                                                                               "overspeed": sc.overspeed})
+        prof = sc.profile(0.01)
+        bend = (np.abs(prof.kappa) > 0).astype(int)
+        crit = float(prof.t[int(np.flatnonzero(np.diff(bend) == 1)[-1]) + 1])  # the last curve's entry
+        return RideCase(kind, seed, sc, FrictionSchedule.constant(mu, scaling=scaling), notes={"mu_road": mu,
+                                                                               "overspeed": sc.overspeed,
+                                                                               "curve_entry_s": crit})
     ramp = 2.5 if kind.endswith("_long") else 1.2
     sc = make_scenario("urban", lateral_g=0.5, duration_s=60.0, ramp_s=ramp, seed=seed)
     effects: Any = EVAL_EFFECTS
     notes: dict[str, Any] = {}
+    bias: dict[str, float] = {}
     if kind.endswith("_bank"):
         rng = np.random.default_rng(np.random.SeedSequence([seed, 91]))
         bank = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.015, 0.04))
         effects, notes = [EVAL_EFFECTS, f"road_bank:bank_rad={bank!r}"], {"bank_rad": bank}
+    if kind == "dry_offsets":
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 93]))
+        bias = {c: float(rng.choice([-1.0, 1.0]) * v) for c, v in OFFSETS.items()}
+        notes = {"bias": bias}
     if kind.startswith("dry"):
-        return RideCase(kind, seed, sc, FrictionSchedule.constant(0.9), effects=effects, notes=notes)
+        return RideCase(kind, seed, sc, FrictionSchedule.constant(0.9, scaling=scaling), effects=effects, notes=notes,
+                        bias=bias)
     prof = sc.profile(0.01)
-    s_mid = float(prof.s[len(prof.s) // 2])
-    return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s_mid, mu_before=0.9, mu_patch=0.45, ramp=2.0),
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 95]))
+    k, more = _patch_start(prof, kind, rng)
+    s0 = float(prof.s[k])
+    return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s0, mu_before=0.9, mu_patch=0.45, ramp=2.0,
+                                                           scaling=scaling),
                     effects=effects,
-                    notes={**notes, "patch_start_m": s_mid, "patch_start_s": float(prof.t[len(prof.t) // 2])})
+                    notes={**notes, **more, "patch_start_m": s0, "patch_start_s": float(prof.t[k])})
 
 
 def true_utilisation(states: np.ndarray, vx: np.ndarray, mu: np.ndarray, friction: FrictionSchedule,
@@ -217,6 +288,53 @@ def saturation_events(t: np.ndarray, util: np.ndarray, fraction: float = SATURAT
             out.append(float(t[k]))
         last = float(t[k])
     return np.array(out)
+
+
+def dry_contrast(states: np.ndarray, vx: np.ndarray, mu: np.ndarray, friction: FrictionSchedule,
+                 effects=EVAL_EFFECTS, vehicle=None) -> np.ndarray:
+    """What the tires tell about the road, per sample [m/s^2]: ``|sum_k F_ss,k(x; mu_ref) - sum_k
+    F_ss,k(x; mu)| / M``, the lateral acceleration by which the tires on the road ridden (friction
+    ``mu``) differ from the same tires at the same state on the reference road ``mu_ref`` (dry), from
+    the true states. Zero on the reference road; on a wet road of :data:`ptw_env.friction` scaling
+    ``"peak"`` it stays near zero while the tires use a small share of their grip (the curve's slope
+    is the same), on ``"stiffness_and_peak"`` it is ``(1 - mu/mu_ref)`` times the axle forces at any
+    slip. The accelerometer reads the sum of the axle forces over ``M``, so this is the signal
+    any warning that reads the tires has to find the friction in."""
+    plants = FrictionPlants(friction, vehicle, effects=as_effects(effects))
+    X = np.asarray(states, dtype=float)
+    vx = np.asarray(vx, dtype=float)
+    mu = np.asarray(mu, dtype=float)
+    ref = plants.plant(friction.mu_ref)
+    f_ref = ref.steady_tire_force(X, vx).sum(axis=-1)
+    out = np.zeros(len(X))
+    for m in np.unique(np.round(mu, 3)):
+        idx = np.flatnonzero(np.round(mu, 3) == m)
+        out[idx] = f_ref[idx] - plants.plant(float(m)).steady_tire_force(X[idx], vx[idx]).sum(axis=-1)
+    return np.abs(out) / ref.vehicle.mass
+
+
+def information_onset(t: np.ndarray, contrast: np.ndarray, t0: float, ay_std: float,
+                      window_s: float = LATENCY_S) -> float | None:
+    """First instant ``>= t0`` [s] at which the tires have told the road from the reference road to a
+    reader that knows the true state: the mean of :func:`dry_contrast` over the trailing ``window_s``
+    reaches twice the standard error of the mean of ``window_s`` of accelerometer noise
+    (``2 ay_std / sqrt(n)``, ``n`` samples in the window). An oracle bound, generous to any real
+    warning (which must also estimate the state): no warning that reads the tires can be sure of the
+    new friction before it. None: never.
+
+    >>> t = np.arange(100) * 0.01
+    >>> information_onset(t, np.where(t >= 0.5, 0.2, 0.0), 0.0, ay_std=0.25)  # 2 x 0.25 / sqrt(30) = 0.091
+    0.63
+    """
+    t = np.asarray(t, dtype=float)
+    c = np.asarray(contrast, dtype=float)
+    dt = float(np.median(np.diff(t)))
+    n = max(1, int(round(window_s / dt)))
+    mean = np.convolve(c, np.ones(n) / n, mode="full")[: len(c)]  # trailing mean (shorter at the start)
+    mean[: n - 1] *= n / np.arange(1, n)
+    thr = 2.0 * ay_std / math.sqrt(n)
+    k = np.flatnonzero((t >= t0) & (mean >= thr))
+    return float(t[k[0]]) if k.size else None
 
 
 def lead_time(t: np.ndarray, level: np.ndarray, t_event: float, min_level: int) -> dict[str, Any]:
@@ -260,17 +378,54 @@ class CaseResult:
     mu_true: np.ndarray
     utilisation: np.ndarray  #: true |F_ss|/Fmax (K, 2)
     events: np.ndarray  #: saturation onsets [s]
+    contrast: np.ndarray | None = None  #: :func:`dry_contrast` [m/s^2] (K,)
+
+    def reference_time(self) -> float | None:
+        """The instant the lead is counted from [s]: the friction drop (wet), the critical curve's entry
+        (too fast); None on a dry ride."""
+        if "curve_entry_s" in self.case.notes:
+            return float(self.case.notes["curve_entry_s"])
+        mu = self.mu_true
+        k = np.flatnonzero(mu < mu[0] - 1e-9)
+        return float(self.run.t[k[0]]) if k.size else None
+
+    def load_at(self, t0: float) -> float:
+        """True ``|F_k| / Fz_k`` of the more loaded axle at ``t0`` [-]."""
+        tires = REFERENCE_SCOOTER.tires
+        k = min(int(np.searchsorted(self.run.t, t0)), len(self.ride.states) - 1)
+        return float(np.max(np.abs(self.ride.states[k, 6:8]) / np.array([tires.Fzf, tires.Fzr])))
 
     def summary(self, run=None) -> dict[str, Any]:
-        """Figures of the ride: events with lead times (caution, danger), false-alarm episodes,
-        peak true utilisation, friction estimate at the end and its truth (``run``: another
+        """Figures of the ride: events with lead times (caution, danger) and the time from the drop
+        (or curve entry) to them, the tires' information onset (:func:`information_onset`) and the lead it
+        leaves, the latency of the first caution after a drop and the load then, false-alarm
+        episodes, peak true utilisation, friction estimate at the end and its truth (``run``: another
         assessment of the same ride, e.g. :func:`assist.risk.offline.replay`)."""
         run = self.run if run is None else run
         t = run.t
         lv = run.level_code
+        t_ref = self.reference_time()
+        t_info = None
+        if t_ref is not None and self.contrast is not None:
+            from ptw_env.sensors import SensorConfig
+
+            ay_std = SensorConfig.from_percent(self.case.noise_pct).noise_std["ay"]
+            drop = np.flatnonzero(self.mu_true < self.mu_true[0] - 1e-9)  # the road of the event since its drop,
+            t_from = float(t[drop[0]]) if drop.size else float(t[0])  # or since the start (a damp road throughout)
+            t_info = information_onset(t, self.contrast, t_from, ay_std)
         ev = []
         for te in self.events:
-            ev.append({"t": float(te), "caution": lead_time(t, lv, te, 1), "danger": lead_time(t, lv, te, 2)})
+            e = {"t": float(te), "caution": lead_time(t, lv, te, 1), "danger": lead_time(t, lv, te, 2)}
+            if t_ref is not None:
+                e["after_reference_s"] = float(te - t_ref)
+                e["information_lead_bound_s"] = None if t_info is None or t_info > te else float(te - t_info)
+            ev.append(e)
+        latency = None
+        if t_ref is not None:
+            on = np.flatnonzero((t >= t_ref) & (lv >= 1))
+            latency = {"load_at_reference": self.load_at(t_ref),
+                       "caution_after_s": float(t[on[0]] - t_ref) if on.size else None,
+                       "information_after_s": None if t_info is None else float(max(t_info - t_ref, 0.0))}
         return {
             "kind": self.case.kind,
             "seed": self.case.seed,
@@ -283,6 +438,8 @@ class CaseResult:
             "danger_episodes": episodes(lv, 2),
             "mu_hat_final": float(run.assessments[-1].mu_hat),
             "mu_true_final": float(self.mu_true[-1]),
+            "reference_s": t_ref,
+            "latency": latency,
         }
 
 
@@ -387,8 +544,12 @@ def run_case(case: RideCase, pipeline=None) -> CaseResult:
 
     from .offline import assess_log
 
-    ride = ride_scenario(case.scenario, effects=case.effects, noise_pct=case.noise_pct, seed=case.seed,
-                         friction=case.friction, scenario_seed=case.seed)
+    from ptw_env.sensors import SensorConfig
+
+    sensors = {"sensors": SensorConfig.from_percent(case.noise_pct, bias=case.bias)} if case.bias else \
+        {"noise_pct": case.noise_pct}
+    ride = ride_scenario(case.scenario, effects=case.effects, seed=case.seed, friction=case.friction,
+                         scenario_seed=case.seed, hold_line=True, **sensors)
     c = ride.log.columns
     prof = case.scenario.profile(0.01, seed=case.seed)
     c["kappa"] = np.asarray(prof.kappa[: len(ride.log.t)], dtype=float)
@@ -396,14 +557,21 @@ def run_case(case: RideCase, pipeline=None) -> CaseResult:
     mu = np.asarray(c["mu_true"], dtype=float)
     util = true_utilisation(ride.states, c["vx_true"], mu, case.friction, case.effects)
     return CaseResult(case=case, ride=ride, run=run, mu_true=mu, utilisation=util,
-                      events=saturation_events(ride.log.t, util))
+                      events=saturation_events(ride.log.t, util),
+                      contrast=dry_contrast(ride.states, c["vx_true"], mu, case.friction, case.effects))
 
 
 __all__ = [
     "CaseResult",
     "CurveTooFast",
     "EVAL_EFFECTS",
+    "dry_contrast",
+    "information_onset",
+    "EVAL_KINDS",
     "KINDS",
+    "LATENCY_LOAD",
+    "LATENCY_S",
+    "OFFSETS",
     "RideCase",
     "SATURATION_FRACTION",
     "episodes",

@@ -51,10 +51,45 @@ A stiffness estimate also falls when the tires approach saturation (the
 linear model sees the secant of the tanh curve, ``tanh(a)/a``: -11 % at 56 %
 of the grip): ``mu_hat`` is then low, which errs on the safe side.
 
+Which tire (``FrictionConfig.tire``)
+------------------------------------
+The mapping above (``tire="stiffness"``) holds on roads that scale the whole tire curve
+(:mod:`ptw_env.friction` ``scaling="stiffness_and_peak"``). Measured tires on a wet road keep their
+small-slip stiffness and lose peak force (``scaling="peak"``, the simulator's default): there a
+stiffness estimate does not tell the friction at small slip at all, only the *curvature* of the
+tire curve does. ``tire="peak"`` (the default) reads it: the estimated stiffness ratio ``theta =
+r_hat`` is taken as the secant ``F / F_lin`` of the tanh curve, ``theta = w / atanh(w)`` with the
+utilisation ``w = |F| / Fmax``, so
+
+.. math::
+
+    w = g^{-1}(\\theta),\\ g(w) = \\frac{w}{\\operatorname{atanh} w},\\qquad
+    \\hat\\mu_{raw} = \\frac{\\ell}{w},\\quad \\ell = \\frac{|F_f| + |F_r|}{F_{zf} + F_{zr}}
+
+(``ell``: the estimated lateral force over the static load, ``|a_y| / g`` without force estimates).
+Its spread comes from ``theta +- s_theta`` with ``s_theta^2 = sigma_r^2 + model_std^2``:
+``model_std`` (0.3) is the error
+of the linear stiffness estimate away from saturation that is not noise (the observer's model is
+linear in the lean and the speed; sensor offsets add to it): measured with the default estimator on
+the reference scooter's evaluation rides of calibration seeds 0-7 (the evaluation uses seeds
+1000-1039), while the tires used 10-70 % of their grip ``theta`` went down to 0.81 on clean sensors
+(``dry``, ``dry_bank``; its median 0.93-1.0, the tanh secant 0.86-0.99) and to 0.62 with the yaw-gyro
+bias of 0.01 rad/s and accelerometer offset of 0.1 m/s^2 of ``dry_offsets``; at 95 % and more of
+the grip its median was 0.29. With 0.3 a reading is used only below ``theta`` ~0.54 (at a load of
+0.45), under both. The estimate is used when ``sigma_raw <=
+max_informed_std mu_raw`` (relative: a small load over a curve that only looks bent gives a small
+``mu_raw`` with a small absolute, but a large relative, spread) and ``mu_raw`` is a road's friction
+(:data:`ptw_env.friction.MU_RANGE`, from 0.05), and not in the first ``settle_s`` (1 s) after a
+reset: the observer starts from a zero state while the vehicle already rides (on a bank, leaning),
+and its reading falls to 0.2-0.6 for the first 0.1 s of a ride. So it is *informed* only where the curve is bent far beyond
+that, within reach of the grip (a secant of 0.6 is 94 % of it): a wet road is seen when the tires
+near their limit, not before. A tire-reading warning on such tires cannot see a wet patch at small
+slip; README, "Risk warning", measures what that costs.
+
 Examples
 --------
 >>> import numpy as np
->>> fe = FrictionEstimate()
+>>> fe = FrictionEstimate(FrictionConfig(tire="stiffness"))      # a road that scales the whole curve
 >>> c0 = np.array([22486.0, 1063.8, 20178.0, 644.36])
 >>> st = fe.update(0.0, 0.9 * c0, 0.8 * c0, ay=0.0)         # nothing known yet: the prior
 >>> st.informed, st.mu_hat, st.status
@@ -66,6 +101,13 @@ Examples
 ...     st = fe.update(0.02 + 0.01 * k, 0.5 * c0, 0.05 * c0, ay=3.0)  # cornering
 >>> st.informed, round(st.mu_hat, 3), round(st.mu_std, 4), st.status
 (True, 0.45, 0.0225, 'informed (|a_y| 2.89 m/s^2)')
+>>> fe = FrictionEstimate()                                  # tire="peak": the bend of the curve tells
+>>> st = fe.update(0.0, 0.95 * c0, 0.02 * c0, ay=2.0)       # 5 % below the slope: could be model error
+>>> st.informed, st.mu_hat
+(False, 0.9)
+>>> st = fe.update(1.5, 0.4 * c0, 0.02 * c0, ay=4.4)        # 40 % of the slope at 0.45 g, after the start-up
+>>> st.informed, round(st.mu_hat, 2)                        # w = 0.975 of the grip: 0.449 / 0.975
+(True, 0.46)
 """
 
 from __future__ import annotations
@@ -74,9 +116,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
 
-from ptw_env.friction import REFERENCE_FRICTION
-from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
+from ptw_env.friction import MU_RANGE, REFERENCE_FRICTION
+from ptw_env.vehicle import G, REFERENCE_SCOOTER, Vehicle
 
 
 def nominal_stiffness(vehicle: Vehicle) -> np.ndarray:
@@ -88,6 +131,43 @@ def nominal_stiffness(vehicle: Vehicle) -> np.ndarray:
 
 #: The reference scooter's nominal stiffnesses ``C_0`` [N/rad] (model.md, derived tire parameters).
 NOMINAL_STIFFNESS = nominal_stiffness(REFERENCE_SCOOTER)
+
+
+#: Largest friction ``tire="peak"`` reports [-] (:data:`ptw_env.friction.MU_RANGE`).
+MU_MAX = 2.0
+#: What road friction changes in the tires (:class:`FrictionConfig` ``tire``).
+TIRES = ("peak", "stiffness")
+def utilisation_of_secant(theta: float) -> float:
+    """``w`` with ``w / atanh(w) = theta`` (module docstring): 0 for ``theta >= 1`` (a linear tire), ->1 as
+    ``theta`` -> 0.
+
+    >>> round(utilisation_of_secant(0.9837), 3), round(utilisation_of_secant(0.5), 3), utilisation_of_secant(1.2)
+    (0.22, 0.958, 0.0)
+    """
+    th = float(theta)
+    if not th < 1.0:
+        return 0.0
+    hi = 1.0 - 1e-15
+    if th <= hi / math.atanh(hi):  # beyond any slip the tanh curve reaches in double precision
+        return hi
+    return float(brentq(lambda w: w / math.atanh(w) - th, 1e-12, hi, xtol=1e-13))
+
+
+def peak_friction(theta: float, theta_std: float, load: float) -> tuple[float, float]:
+    """``(mu_raw, sigma_raw)`` on a peak-scaling tire (module docstring): ``load / w(theta)`` and half the
+    spread of ``load / w`` over ``theta +- theta_std`` (``inf`` where the tire looks linear).
+
+    >>> mu, s = peak_friction(0.5, 0.05, 0.43)
+    >>> round(mu, 3), round(s, 3)
+    (0.449, 0.009)
+    >>> peak_friction(0.98, 0.1, 0.2)
+    (inf, inf)
+    """
+    w = utilisation_of_secant(theta)
+    w_lo, w_hi = utilisation_of_secant(theta + theta_std), utilisation_of_secant(theta - theta_std)
+    if w <= 0.0 or w_lo <= 0.0 or load <= 0.0:
+        return math.inf, math.inf
+    return load / w, 0.5 * (load / w_lo - load / w_hi)
 
 
 #: Lateral acceleration [m/s^2] above which a turn, not only the steering response, informs the estimate
@@ -120,6 +200,14 @@ class FrictionConfig:
         Random-walk intensity of the friction while uninformed [1/sqrt(s)] (default 0.02).
     fallback_std : float
         Relative stiffness std used when the estimator reports none (NaN) [-] (default 0.15).
+    tire : {"peak", "stiffness"}
+        What the road friction changes in the tires (module docstring): the peak only (default; the
+        friction is read from the bend of the tire curve) or stiffness and peak (the stiffness tells it).
+    model_std : float
+        ``tire="peak"``: relative error of the stiffness estimate that is not noise [-] (default 0.3).
+    settle_s : float
+        ``tire="peak"``: no reading in the first ``settle_s`` after :meth:`FrictionEstimate.reset` [s]
+        (default 1.0; module docstring).
     """
 
     mu_ref: float = REFERENCE_FRICTION
@@ -130,13 +218,18 @@ class FrictionConfig:
     max_informed_std: float = 0.25
     walk: float = 0.02
     fallback_std: float = 0.15
+    tire: str = "peak"
+    model_std: float = 0.3
+    settle_s: float = 1.0
 
     def __post_init__(self) -> None:
+        if self.tire not in TIRES:
+            raise FrictionEstimateError(f"FrictionConfig.tire must be one of {', '.join(TIRES)}, got {self.tire!r}")
         for name in ("mu_ref", "prior_mu", "prior_std", "excitation_tau_s", "max_informed_std", "fallback_std"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise FrictionEstimateError(f"FrictionConfig.{name} must be a positive number, got {v!r}")
-        for name in ("excitation_min", "walk"):
+        for name in ("excitation_min", "walk", "model_std", "settle_s"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
                 raise FrictionEstimateError(f"FrictionConfig.{name} must be a number >= 0, got {v!r}")
@@ -222,7 +315,10 @@ class FrictionEstimate:
         self.config = FrictionConfig() if config is None else config
         if not isinstance(self.config, FrictionConfig):
             raise FrictionEstimateError(f"config must be a FrictionConfig, got {type(config).__name__}")
-        self.nominal = NOMINAL_STIFFNESS if vehicle is None else nominal_stiffness(vehicle)
+        v = REFERENCE_SCOOTER if vehicle is None else vehicle
+        self.nominal = nominal_stiffness(v)
+        #: static axle loads [N] (the load share of ``tire="peak"``)
+        self.fz = np.array([v.tires.Fzf, v.tires.Fzr])
         self.reset()
 
     def reset(self) -> None:
@@ -233,6 +329,7 @@ class FrictionEstimate:
         self._t_last: float | None = None
         self._ay_f = np.zeros(3)
         self._t_prev: float | None = None
+        self._t0: float | None = None
         self.state: FrictionState | None = None
 
     def update(self, t: float, stiffness, stiffness_std, ay: float, axle_accel=None) -> FrictionState:
@@ -255,7 +352,24 @@ class FrictionEstimate:
         self._ay_f[ok] += a * (sig[ok] - self._ay_f[ok])
         exc = float(np.max(np.abs(self._ay_f)))
         mu_raw, raw_std = stiffness_to_friction(stiffness, stiffness_std, c.mu_ref, self.nominal, c.fallback_std)
-        if exc >= c.excitation_min and raw_std <= c.max_informed_std * c.mu_ref:
+        if c.tire == "peak":  # the bend of the tire curve, not its slope, tells the friction
+            theta, s_theta = mu_raw / c.mu_ref, math.hypot(raw_std / c.mu_ref, c.model_std)
+            if axle_accel is not None and np.all(np.isfinite(sig[1:])):
+                load = float(np.abs(sig[1:]) @ self.fz / self.fz.sum() / G)
+            else:
+                load = abs(float(ay)) / G if math.isfinite(float(ay)) else 0.0
+            mu_raw, raw_std = peak_friction(theta, s_theta, load)
+            mu_raw = min(mu_raw, MU_MAX)
+        # informed: sigma within max_informed_std of mu_ref (stiffness), of the estimate itself (peak: a small
+        # load over a wrongly bent curve gives a small mu with a small absolute, but a large relative, spread)
+        limit = c.max_informed_std * (mu_raw if c.tire == "peak" else c.mu_ref)
+        if c.tire == "peak":
+            if self._t0 is None:
+                self._t0 = t
+            # below any road's friction, or the estimator's start-up: not a reading of the road
+            if mu_raw < MU_RANGE[0] or t - self._t0 < c.settle_s:
+                limit = -1.0
+        if exc >= c.excitation_min and raw_std <= limit:
             self._mu, self._var_last, self._t_last = mu_raw, raw_std**2, t
             informed, since, std = True, 0.0, raw_std
             status = (f"informed (|a_y| {exc:.2f} m/s^2)" if exc >= LATERAL_EXCITATION else
@@ -283,6 +397,9 @@ __all__ = [
     "FrictionEstimateError",
     "FrictionState",
     "NOMINAL_STIFFNESS",
+    "TIRES",
+    "peak_friction",
+    "utilisation_of_secant",
     "nominal_stiffness",
     "stiffness_to_friction",
 ]

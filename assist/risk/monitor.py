@@ -73,8 +73,8 @@ References
 Examples
 --------
 >>> import math, numpy as np
->>> from assist.risk.friction_estimate import NOMINAL_STIFFNESS as c0
->>> mon = RiskMonitor()
+>>> from assist.risk.friction_estimate import NOMINAL_STIFFNESS as c0, FrictionConfig
+>>> mon = RiskMonitor(friction=FrictionEstimate(FrictionConfig(tire="stiffness")))  # stiffness tells the friction
 >>> path = PathAhead(distance=np.array([0.0, 20.0, 40.0]), kappa=np.array([0.0, 0.02, 0.02]))
 >>> a = mon.update(0.0, 0.5 * c0, 0.05 * c0, vx=20.0, ay=3.0, forces=(400.0, 550.0), path=path)
 >>> a.level, round(a.mu_hat, 2), round(math.degrees(a.max_safe_lean), 1), round(a.safe_speed_next_curve, 1)
@@ -123,7 +123,9 @@ class RiskConfig:
     style_enter, style_exit : float
         Thresholds of the riding-style index ``pi`` [-] (1.0, 0.875).
     confirm_sigmas : float
-        ``k`` of ``mu_low = mu_hat - k sigma`` (2).
+        ``k`` of ``mu_low = mu_hat - k sigma`` (2). :class:`RiskMonitor` without a config takes 0 when its
+        friction estimate reads a peak-scaling tire (``FrictionConfig.tire="peak"``, the default): such tires
+        confirm the grip only near their limit, so a caution on unconfirmed grip would come in every corner.
     mu_floor : float
         Lower bound of ``mu_low`` [-] (0.1).
     min_dwell_s : float
@@ -329,11 +331,13 @@ class RiskMonitor:
 
     def __init__(self, config: RiskConfig | None = None, friction: FrictionEstimate | None = None,
                  vehicle: Vehicle | None = None) -> None:
-        self.config = RiskConfig() if config is None else config
-        if not isinstance(self.config, RiskConfig):
-            raise RiskInputError(f"config must be a RiskConfig, got {type(config).__name__}")
         v = REFERENCE_SCOOTER if vehicle is None else vehicle
         self.friction = FrictionEstimate(vehicle=v) if friction is None else friction
+        if config is None:  # RiskConfig.confirm_sigmas: nothing to confirm on a peak-scaling tire
+            config = RiskConfig(confirm_sigmas=0.0) if self.friction.config.tire == "peak" else RiskConfig()
+        self.config = config
+        if not isinstance(self.config, RiskConfig):
+            raise RiskInputError(f"config must be a RiskConfig, got {type(config).__name__}")
         self.fz = np.array([v.tires.Fzf, v.tires.Fzr])
         self.reset()
 

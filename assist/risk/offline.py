@@ -114,7 +114,7 @@ class RiskRun:
 
 
 def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | None = None,
-               use_kappa: bool = True, vehicle: Vehicle | None = None) -> RiskRun:
+               use_kappa: bool = True, vehicle: Vehicle | None = None, tire: str = "peak") -> RiskRun:
     """Run the risk warning over a :class:`ptw_env.logs.RideLog` (module docstring).
 
     Parameters
@@ -129,6 +129,8 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
     vehicle : Vehicle, optional
         The vehicle of the default pipeline (default: the sidecar's, :func:`ptw_env.vehicle_files.vehicle_of_log`,
         else the reference scooter).
+    tire : {"peak", "stiffness"}
+        The default pipeline's friction reading (:class:`RiskPipeline` ``tire``; default "peak").
 
     Examples
     --------
@@ -151,7 +153,7 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
         pct = noise_pct if noise_pct is not None else sidecar_noise_pct(log.meta)
         pct = DEFAULT_NOISE_PCT if pct is None else pct
         v = vehicle if vehicle is not None else vehicle_of_log(log.meta or {}, getattr(log, "path", None))
-        pipeline = RiskPipeline(default_estimator(pct, dt, v, np.asarray(c["vx"], dtype=float)), vehicle=v)
+        pipeline = RiskPipeline(default_estimator(pct, dt, v, np.asarray(c["vx"], dtype=float)), vehicle=v, tire=tire)
     pipeline.reset()
     Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
     vx = np.asarray(c["vx"], dtype=float)

@@ -23,6 +23,7 @@ import numpy as np
 
 from ptw_env.vehicle import G, REFERENCE_SCOOTER, Vehicle
 
+from .friction_estimate import FrictionConfig, FrictionEstimate
 from .monitor import PathAhead, RiskAssessment, RiskMonitor
 
 class MonitorInputs(NamedTuple):
@@ -96,7 +97,8 @@ def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, vehicle: 
 
 
 class BankEstimate:
-    """The road bank from the IMU, on line: ``beta_hat = asin(LP(a_y - v_x r) / g)``.
+    """The road bank from the IMU, on line: ``beta_hat = asin(LP(a_y - v_x (r - b_hat)) / g)``, with the
+    yaw-rate gyro bias ``b_hat`` estimated on the same straights.
 
     Row 3 of model.md with effects.md's ``road_bank`` reads ``M (vy' + vx r) + e34 r' + e35 phi'' +
     e36 delta'' = Fyf + Fyr - M g sin(beta)``, and the lateral accelerometer gives ``a_y = (Fyf +
@@ -108,33 +110,47 @@ class BankEstimate:
                     + g \\sin\\beta .
 
     Every term but the last is a derivative of a bounded signal, large in curves (a curve entry's
-    ``vy'`` and ``r'``): the estimate takes only samples ridden straight (the yaw rate low-passed over
-    ``straight_tau_s`` = 0.5 s below ``straight_yaw_rate`` = 0.05 rad/s), averages them until
-    ``tau_s`` (10 s) of straight riding have been seen, then low-passes them with that time
-    constant; it says 0 (level) until ``warmup_s`` (3 s) of straight riding, and holds in curves. What it cannot tell from a bank: a yaw-rate gyro bias ``b`` (it
-    reads as ``-v_x b / g``; 0.01 rad/s at 15 m/s is 0.015 rad), a lateral accelerometer offset,
-    a bank that changes faster than ``tau_s`` of straight riding.
+    ``vy'`` and ``r'``): the estimate takes only samples ridden straight (the bias-corrected yaw rate
+    low-passed over ``straight_tau_s`` = 0.5 s below ``straight_yaw_rate`` = 0.05 rad/s), averages
+    them until ``tau_s`` (10 s) of straight riding have been seen, then low-passes them with that
+    time constant; it says 0 (level) until ``warmup_s`` (3 s) of straight riding, and holds in curves.
 
-    Measured (``scripts/eval_risk.py --road-bank auto``, 20 seeds per ride type, README): on
-    banked roads (0.015-0.04 rad) it removes the friction estimate's bias; on level roads it adds
-    some false cautions (its noise moves the estimate).
+    Gyro bias (issue 20): a yaw-rate gyro bias ``b`` enters as ``-v_x b``: 0.01 rad/s at 15 m/s
+    would read as a bank of 0.015 rad. On a straight road a rider holds the line, the heading is
+    constant, so the true yaw rate averages to zero there and the measured one to ``b``: ``b_hat``
+    is the average of the measured yaw rate over the straight samples (a low-pass of ``bias_tau_s``
+    = 60 s once that many have been seen: a sensor's bias does not wander, and a slow manoeuvre's
+    yaw rate, below the straight threshold at low speed, only averages out over its whole length),
+    used once ``bias_warmup_s`` = 10 s of straights have been seen, and subtracted from ``r`` (here and, by :class:`RiskPipeline`, in the yaw-rate channel the
+    estimator reads). It needs that rider: one who keeps the road-relative roll at zero on a banked
+    straight turns slowly downhill, a real yaw rate this estimate would take for a bias
+    (:func:`ptw_env.ride.ride_scenario` ``hold_line``; the risk evaluation's rider holds the line). What stays indistinguishable
+    from a bank: a lateral accelerometer offset ``o`` (it adds ``o`` to ``a_y - v_x r`` on straights
+    and in corners alike, at every speed, as ``g sin(beta)`` does; 0.1 m/s^2 reads as 0.010 rad),
+    and a bank that changes faster than ``tau_s`` of straight riding. Read as a bank, the offset is
+    at least explained the way the estimator's model sees it: a steady ``a_y`` with no turn.
 
-    >>> be = BankEstimate(tau_s=1.0)
+    Measured: ``scripts/eval_risk.py`` (README, "Risk warning").
+
+    >>> be = BankEstimate(tau_s=1.0, bias_warmup_s=5.0)
     >>> for _ in range(1000):
-    ...     b = be.update(ay=9.81 * math.sin(0.03), yaw_rate=0.0, vx=15.0)
-    >>> round(b, 4)
-    0.03
+    ...     b = be.update(ay=9.81 * math.sin(0.03), yaw_rate=0.01, vx=15.0)  # straight, gyro bias 0.01 rad/s
+    >>> round(b, 4), round(be.yaw_rate_bias, 4)
+    (0.03, 0.01)
     """
 
     def __init__(self, tau_s: float = 10.0, dt: float = 0.01, limit: float = 0.3, record: bool = False,
-                 straight_yaw_rate: float = 0.05, straight_tau_s: float = 0.5, warmup_s: float = 3.0) -> None:
+                 straight_yaw_rate: float = 0.05, straight_tau_s: float = 0.5, warmup_s: float = 3.0,
+                 bias_tau_s: float = 60.0, bias_warmup_s: float = 10.0) -> None:
         for name, v in (("tau_s", tau_s), ("dt", dt), ("limit", limit), ("straight_yaw_rate", straight_yaw_rate),
-                        ("straight_tau_s", straight_tau_s), ("warmup_s", warmup_s)):
+                        ("straight_tau_s", straight_tau_s), ("warmup_s", warmup_s), ("bias_tau_s", bias_tau_s),
+                        ("bias_warmup_s", bias_warmup_s)):
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"BankEstimate {name} must be a positive number, got {v!r}")
         self.tau_s, self.dt, self.limit = float(tau_s), float(dt), float(limit)
         self.straight_yaw_rate, self.straight_tau_s = float(straight_yaw_rate), float(straight_tau_s)
         self.warmup_s = float(warmup_s)
+        self.bias_tau_s, self.bias_warmup_s = float(bias_tau_s), float(bias_warmup_s)
         #: keep every estimate since the last reset in :attr:`history`
         self.record = bool(record)
         self.reset()
@@ -143,23 +159,35 @@ class BankEstimate:
         self._f = 0.0
         self._n = 0
         self._r = math.nan
+        self._b = 0.0
+        self._v = 0.0
         self.bank = 0.0
+        #: the yaw-rate gyro bias estimate [rad/s] (0 until ``warmup_s`` of straight riding)
+        self.yaw_rate_bias = 0.0
         self.history: list[float] | None = [] if self.record else None
 
     def update(self, ay: float, yaw_rate: float, vx: float) -> float:
         """Take one sample (``a_y`` [m/s^2], ``r`` [rad/s], ``v_x`` [m/s]; NaN: skipped); the bank [rad]."""
-        z = float(ay) - float(vx) * float(yaw_rate)
         r = float(yaw_rate)
-        if math.isfinite(r):  # |low-passed yaw rate| below straight_yaw_rate: riding straight
+        if math.isfinite(r):  # |low-passed, bias-corrected yaw rate| below straight_yaw_rate: riding straight
             ar = 1.0 - math.exp(-self.dt / self.straight_tau_s)
-            self._r = r if math.isnan(self._r) else self._r + ar * (r - self._r)
+            rc = r - self.yaw_rate_bias
+            self._r = rc if math.isnan(self._r) else self._r + ar * (rc - self._r)
+        z = float(ay) - float(vx) * r
         if math.isfinite(z) and abs(self._r) < self.straight_yaw_rate:
             # the mean of the straight samples so far, then a low-pass of time constant tau_s
             self._n += 1
             a = max(1.0 - math.exp(-self.dt / self.tau_s), 1.0 / self._n)
             self._f += a * (z - self._f)
+            self._v += a * (float(vx) - self._v)
+            # the bias is a property of the sensor: averaged longer, and used once bias_warmup_s of straights
+            # have been seen (a manoeuvre's yaw rate averages out over its whole length, not over seconds)
+            self._b += max(1.0 - math.exp(-self.dt / self.bias_tau_s), 1.0 / self._n) * (r - self._b)
+            if self._n * self.dt >= self.bias_warmup_s:
+                self.yaw_rate_bias = self._b
             if self._n * self.dt >= self.warmup_s:  # before: too few samples, the level road stands
-                self.bank = math.asin(max(-math.sin(self.limit), min(math.sin(self.limit), self._f / G)))
+                zc = self._f + self._v * self.yaw_rate_bias  # the same average of v_x b as z holds
+                self.bank = math.asin(max(-math.sin(self.limit), min(math.sin(self.limit), zc / G)))
         if self.history is not None:
             self.history.append(self.bank)
         return self.bank
@@ -193,15 +221,21 @@ class RiskPipeline:
         and a false danger in 9 of them; estimated on line, none, and the level-road rides are as good).
     vehicle : Vehicle, optional
         The vehicle of the default estimator and monitor (default the reference scooter).
+    tire : {"peak", "stiffness"}
+        How the default monitor reads friction from the stiffness estimate
+        (:class:`~assist.risk.friction_estimate.FrictionConfig` ``tire``): from the bend of the tire curve
+        (default; wet roads that lower the peak) or from its slope (roads that scale the whole curve).
     """
 
     def __init__(self, estimator=None, monitor: RiskMonitor | None = None,
-                 road_bank: float | str | None = "auto", vehicle: Vehicle | None = None) -> None:
+                 road_bank: float | str | None = "auto", vehicle: Vehicle | None = None, tire: str = "peak") -> None:
         self.estimator = default_estimator(vehicle=vehicle) if estimator is None else estimator
         if not isinstance(self.estimator, StiffnessEstimator):
             raise TypeError("estimator must have update(y, tau, vx), reset(), stiffness and stiffness_std; "
                             f"got {type(self.estimator).__name__}")
-        self.monitor = RiskMonitor(vehicle=vehicle) if monitor is None else monitor
+        if monitor is None:
+            monitor = RiskMonitor(friction=FrictionEstimate(FrictionConfig(tire=tire), vehicle=vehicle), vehicle=vehicle)
+        self.monitor = monitor
         self.bank_estimate: BankEstimate | None = None
         settable = hasattr(self.estimator, "road_bank")
         if road_bank == "auto":
@@ -241,6 +275,8 @@ class RiskPipeline:
             raise ValueError(f"vx is missing at t = {t} s and no earlier speed is known")
         if self.bank_estimate is not None:
             self.estimator.road_bank = self.bank_estimate.update(y[4], y[1], self._vx)
+            y = y.copy()
+            y[1] -= self.bank_estimate.yaw_rate_bias  # the gyro bias found on the straights (BankEstimate)
         self.estimator.update(y, tau, vx)
         est = self.estimator
         xh = getattr(est, "x_hat", None)
