@@ -1,4 +1,7 @@
-"""Issue 5 targets on seeded rides with tire saturation on (truth: the simulator's tire forces).
+"""Issue 5 targets on seeded rides with tire saturation on (truth: the simulator's tire forces), on
+tires whose stiffness follows the friction (``scaling="stiffness_and_peak"``, the model of issue 5;
+the realistic wet tire of issue 20, friction scaling the peak, is tests/test_risk_wet_road.py), read
+with the stiffness reading (``tire="stiffness"``).
 
 * dry ride at normal pace: never saturates, no danger warning;
 * wet patch (0.9 -> 0.45) at unchanged pace and a curve entered too fast: grip is really lost
@@ -25,11 +28,11 @@ SEEDS = (0, 1)
 
 @pytest.fixture(scope="module")
 def rides():
-    pipe = RiskPipeline(default_estimator(5.0))
+    pipe = RiskPipeline(default_estimator(5.0), tire="stiffness")
     out = {}
     for k in ("dry", "wet", "too_fast"):
         for s in SEEDS:
-            res = run_case(make_case(k, s), pipeline=pipe)
+            res = run_case(make_case(k, s, scaling="stiffness_and_peak"), pipeline=pipe)
             out[(k, s)] = {**res.summary(), "estimator": estimator_figures(res)}
     return out
 

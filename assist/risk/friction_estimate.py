@@ -72,11 +72,11 @@ Its spread comes from ``theta +- s_theta`` with ``s_theta^2 = sigma_r^2 + model_
 of the linear stiffness estimate away from saturation that is not noise (the observer's model is
 linear in the lean and the speed; sensor offsets add to it): measured with the default estimator on
 the reference scooter's evaluation rides of calibration seeds 0-7 (the evaluation uses seeds
-1000-1039), while the tires used 10-70 % of their grip ``theta`` went down to 0.81 on clean sensors
-(``dry``, ``dry_bank``; its median 0.93-1.0, the tanh secant 0.86-0.99) and to 0.62 with the yaw-gyro
+1000-1039), while the tires used 10-70 % of their grip ``theta`` went down to 0.76 on clean sensors
+(``dry``, ``dry_bank``; its median 0.94-0.98, the tanh secant 0.81-1.0) and to 0.63 with the yaw-gyro
 bias of 0.01 rad/s and accelerometer offset of 0.1 m/s^2 of ``dry_offsets``; at 95 % and more of
-the grip its median was 0.29. With 0.3 a reading is used only below ``theta`` ~0.54 (at a load of
-0.45), under both. The estimate is used when ``sigma_raw <=
+the grip (``wet_corner``, ``wet_straight``, ``too_fast``) its median was 0.29. With 0.3 a reading is used only below ``theta`` ~0.54 (at any load:
+the relative spread of ``ell / w`` does not depend on it), under both. The estimate is used when ``sigma_raw <=
 max_informed_std mu_raw`` (relative: a small load over a curve that only looks bent gives a small
 ``mu_raw`` with a small absolute, but a large relative, spread) and ``mu_raw`` is a road's friction
 (:data:`ptw_env.friction.MU_RANGE`, from 0.05), and not in the first ``settle_s`` (1 s) after a
