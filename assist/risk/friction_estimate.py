@@ -82,7 +82,7 @@ max_informed_std mu_raw`` (relative: a small load over a curve that only looks b
 (:data:`ptw_env.friction.MU_RANGE`, from 0.05), and not in the first ``settle_s`` (1 s) after a
 reset: the observer starts from a zero state while the vehicle already rides (on a bank, leaning),
 and its reading falls to 0.2-0.6 for the first 0.1 s of a ride. So it is *informed* only where the curve is bent far beyond
-that, within reach of the grip (a secant of 0.6 is 94 % of it): a wet road is seen when the tires
+that, within reach of the grip (a secant of 0.54 is 94 % of it): a wet road is seen when the tires
 near their limit, not before. A tire-reading warning on such tires cannot see a wet patch at small
 slip; README, "Risk warning", measures what that costs.
 
@@ -383,6 +383,12 @@ class FrictionEstimate:
                 std = math.sqrt(self._var_last + c.walk**2 * since)
             if exc < c.excitation_min:
                 status = f"not enough lateral excitation (|a_y| {exc:.2f} m/s^2 < {c.excitation_min:.2f})"
+            elif c.tire == "peak" and self._t0 is not None and t - self._t0 < c.settle_s:
+                status = f"estimator starting up (the first {c.settle_s:g} s are not read)"
+            elif c.tire == "peak":
+                status = ("not read: the tires are not near their limit (the stiffness estimate is within its "
+                          "model-error band)" if not math.isfinite(raw_std) else
+                          f"not read: the tire curve's bend is uncertain (+-{raw_std:.2f} in mu)")
             else:
                 status = f"not enough excitation: the stiffness estimate is too uncertain (+-{raw_std:.2f} in mu)"
         self.state = FrictionState(t=t, mu_hat=float(self._mu), mu_std=float(std), mu_raw=float(mu_raw),
