@@ -502,20 +502,18 @@ def bank_lean(vehicle: Vehicle | None, bank_rad: float, vx: float) -> float:
     >>> round(bank_lean(None, 0.03, 15.0) / 0.03, 3)
     1.005
     """
-    from .dynamics import compile_plant
+    from .dynamics import compile_plant, linearise
 
     vx = float(vx)
-    eps = 1e-6
     p0 = compile_plant(vehicle, None)
     pb = compile_plant(vehicle, f"road_bank:bank_rad={float(bank_rad)!r}")
+    A, B = linearise(p0, vx)
     x0 = np.zeros(8)
-    f0 = p0.rhs(x0, 0.0, vx)
-    A = np.column_stack([(p0.rhs(x0 + eps * e, 0.0, vx) - f0) / eps for e in np.eye(8)])
     M = np.zeros((9, 9))
     M[:8, :8] = A
-    M[:8, 8] = (p0.rhs(x0, eps, vx) - f0) / eps
-    M[8, 3] = 1.0
-    sol = np.linalg.solve(M, np.concatenate([f0 - pb.rhs(x0, 0.0, vx), [0.0]]))
+    M[:8, 8] = B[:, 0]
+    M[8, 3] = 1.0  # r = 0
+    sol = np.linalg.solve(M, np.concatenate([p0.rhs(x0, 0.0, vx) - pb.rhs(x0, 0.0, vx), [0.0]]))
     return float(sol[PHI])
 
 

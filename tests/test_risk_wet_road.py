@@ -162,7 +162,7 @@ def test_wet_patch_in_a_corner_is_told_by_the_tires_at_once_and_cautioned_within
     assert lat["caution_after_s"] is not None and lat["caution_after_s"] <= LATENCY_S
     k = np.flatnonzero(res.run.series("friction_informed"))
     assert k.size and res.run.t[k[0]] >= res.reference_time()  # read on the new road, not guessed before it
-    assert res.run.series("mu_hat")[k[0]] == pytest.approx(0.45, abs=0.12)
+    assert res.run.series("mu_hat")[k[0]] == pytest.approx(0.45, abs=0.05)  # its first reading (0.48 measured)
 
 
 @pytest.mark.xfail(strict=True, reason="measured (scripts/eval_risk.py, README): a loaded drop whose tires touch "

@@ -65,6 +65,7 @@ import numpy as np
 
 from ptw_env.effects import as_effects
 from ptw_env.friction import SCALINGS, FrictionPlants, FrictionSchedule
+from ptw_env.sensors import SensorConfig
 from ptw_env.scenarios import (Scenario, ScenarioError, require_positive, Segment, segments_to_grid, space_based,
                                speed_plan, make_scenario)
 from ptw_env.vehicle import G, REFERENCE_SCOOTER
@@ -380,14 +381,17 @@ class CaseResult:
     events: np.ndarray  #: saturation onsets [s]
     contrast: np.ndarray | None = None  #: :func:`dry_contrast` [m/s^2] (K,)
 
+    def drop_time(self) -> float | None:
+        """First instant the true friction is below the ride's starting friction [s] (None: no drop)."""
+        k = np.flatnonzero(self.mu_true < self.mu_true[0] - 1e-9)
+        return float(self.run.t[k[0]]) if k.size else None
+
     def reference_time(self) -> float | None:
         """The instant the lead is counted from [s]: the friction drop (wet), the critical curve's entry
         (too fast); None on a dry ride."""
         if "curve_entry_s" in self.case.notes:
             return float(self.case.notes["curve_entry_s"])
-        mu = self.mu_true
-        k = np.flatnonzero(mu < mu[0] - 1e-9)
-        return float(self.run.t[k[0]]) if k.size else None
+        return self.drop_time()
 
     def load_at(self, t0: float) -> float:
         """True ``|F_k| / Fz_k`` of the more loaded axle at ``t0`` [-]."""
@@ -407,12 +411,9 @@ class CaseResult:
         t_ref = self.reference_time()
         t_info = None
         if t_ref is not None and self.contrast is not None:
-            from ptw_env.sensors import SensorConfig
-
             ay_std = SensorConfig.from_percent(self.case.noise_pct).noise_std["ay"]
-            drop = np.flatnonzero(self.mu_true < self.mu_true[0] - 1e-9)  # the road of the event since its drop,
-            t_from = float(t[drop[0]]) if drop.size else float(t[0])  # or since the start (a damp road throughout)
-            t_info = information_onset(t, self.contrast, t_from, ay_std)
+            t_drop = self.drop_time()  # the road of the event since its drop, or since the start (damp throughout)
+            t_info = information_onset(t, self.contrast, float(t[0]) if t_drop is None else t_drop, ay_std)
         ev = []
         for te in self.events:
             e = {"t": float(te), "caution": lead_time(t, lv, te, 1), "danger": lead_time(t, lv, te, 2)}
@@ -543,8 +544,6 @@ def run_case(case: RideCase, pipeline=None) -> CaseResult:
     from ptw_env.ride import ride_scenario
 
     from .offline import assess_log
-
-    from ptw_env.sensors import SensorConfig
 
     sensors = {"sensors": SensorConfig.from_percent(case.noise_pct, bias=case.bias)} if case.bias else \
         {"noise_pct": case.noise_pct}

@@ -133,8 +133,6 @@ def nominal_stiffness(vehicle: Vehicle) -> np.ndarray:
 NOMINAL_STIFFNESS = nominal_stiffness(REFERENCE_SCOOTER)
 
 
-#: Largest friction ``tire="peak"`` reports [-] (:data:`ptw_env.friction.MU_RANGE`).
-MU_MAX = 2.0
 #: What road friction changes in the tires (:class:`FrictionConfig` ``tire``).
 TIRES = ("peak", "stiffness")
 def utilisation_of_secant(theta: float) -> float:
@@ -359,7 +357,7 @@ class FrictionEstimate:
             else:
                 load = abs(float(ay)) / G if math.isfinite(float(ay)) else 0.0
             mu_raw, raw_std = peak_friction(theta, s_theta, load)
-            mu_raw = min(mu_raw, MU_MAX)
+            mu_raw = min(mu_raw, MU_RANGE[1])  # the largest friction a road may have
         # informed: sigma within max_informed_std of mu_ref (stiffness), of the estimate itself (peak: a small
         # load over a wrongly bent curve gives a small mu with a small absolute, but a large relative, spread)
         limit = c.max_informed_std * (mu_raw if c.tire == "peak" else c.mu_ref)
