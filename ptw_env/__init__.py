@@ -6,7 +6,8 @@ simulated with the optional effects of ``shared/spec/effects.md``
 integrator (:mod:`ptw_env.integrate`). Importing the package registers the
 Gymnasium ids ``PTWRoll-v0`` (double lane change), ``PTWRollNorm-v0`` (same,
 action normalised to [-1, 1] for RL) and ``PTWRoll-<Scenario>-v0`` for every
-scenario.
+scenario, each with a native vector form (``gymnasium.make_vec(id, num_envs=N,
+vectorization_mode="vector_entry_point")``, :mod:`ptw_env.vector`).
 
 >>> import numpy as np, ptw_env
 >>> x = ptw_env.simulate(np.zeros(8), np.zeros(50), 15.0)
@@ -64,6 +65,7 @@ def _register() -> None:
         gym.register(
             id=env_id,
             entry_point="ptw_env.env:PTWRollEnv",
+            vector_entry_point="ptw_env.vector:PTWRollVectorEnv",
             max_episode_steps=steps(scen),
             kwargs={"scenario": scen, **extra},
         )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 import gymnasium as gym
@@ -13,8 +13,11 @@ from gymnasium import spaces
 
 from .dynamics import compile_plant
 from .effects import Effects, as_effects
+from .episode import (REASONS, SCENARIO_END, Actuator, CostConfig, EpisodeConfigError, actuate, end_code,
+                      grip_utilisation, roll_reward, step_cost)
 from .friction import FrictionPlants, FrictionSchedule
-from .integrate import Stepper
+from .integrate import Stepper, plant_rate, substeps_for
+from .randomize import Randomization, RandomizationError
 from .rider import DEFAULT_TAU_MAX
 from .scenarios import Scenario, ScenarioError, make_scenario
 from .sensors import CHANNELS, SensorConfig, SensorModel
@@ -97,6 +100,16 @@ class Disturbance:
         return self.magnitude if self.start_s <= t < self.start_s + self.duration_s else 0.0
 
 
+def advance_pose(pose: np.ndarray, vx: float, vy: float, r: float, dt: float) -> None:
+    """Dead-reckon the planar pose ``(X, Y, psi)`` of the rear contact over ``dt`` [s] in place
+    (forward Euler: ``X' = vx cos psi - vy sin psi``, ``Y' = vx sin psi + vy cos psi``, ``psi' = r``; plenty
+    for drawing)."""
+    psi = pose[2]
+    pose[0] += dt * (vx * math.cos(psi) - vy * math.sin(psi))
+    pose[1] += dt * (vx * math.sin(psi) + vy * math.cos(psi))
+    pose[2] += dt * r
+
+
 def _as_vehicle(name: str, v: Vehicle | str | os.PathLike | None) -> Vehicle | None:
     """A :class:`Vehicle`, or a preset name / vehicle file (:func:`ptw_env.vehicle_files.load_vehicle`),
     so that ``gymnasium.make("PTWRoll-v0", vehicle="robot-bicycle")`` works."""
@@ -159,7 +172,19 @@ class PTWRollEnv(gym.Env):
     ``r = exp(-(phi - phi_ref)^2 / (2 s^2)) - w (tau / tau_max)^2`` with
     ``s`` = 2 deg (``reward_roll_scale_deg``) and ``w`` = 0.01
     (``reward_effort_weight``): 1 per step for perfect tracking, so staying up
-    pays, and a small effort penalty.
+    pays, and a small effort penalty on the commanded torque ``tau``; 0 on the
+    step where the model diverges.
+
+    Actuator and cost
+    -----------------
+    ``actuator=Actuator(delay_s, bandwidth_hz, rate_limit, torque_limit)``
+    (:class:`ptw_env.episode.Actuator`) puts a steer actuator between the
+    command and the plant (default: ideal). ``info["tau"]`` is the torque the
+    plant receives, ``info["tau_command"]`` the command. Every step also reports
+    the safety cost ``info["cost"]`` (:class:`ptw_env.episode.CostConfig`,
+    ``cost=``: how many of the grip, roll and torque-rate limits the step breaks)
+    and ``info["grip_utilisation"]`` (``max |F|/(mu Fz)`` of the two tires), for
+    safe / constrained RL.
 
     Starting state
     --------------
@@ -211,6 +236,13 @@ class PTWRollEnv(gym.Env):
     randomize_course : bool
         Draw a new course at every ``reset`` from the environment's generator (``reset(seed=...)``
         reproduces it); for scenarios without randomisation it changes nothing.
+    actuator : Actuator, optional
+        Steer actuator delay, bandwidth, rate limit and torque saturation (default: ideal).
+    cost : CostConfig, optional
+        Limits of the safety cost ``info["cost"]`` (default :class:`~ptw_env.episode.CostConfig`).
+    randomize : Randomization, mapping or JSON file, optional
+        Domain randomisation (:mod:`ptw_env.randomize`): effect parameters, sensor noise and bias drawn
+        from seeded distributions at every ``reset``; ``info["randomized"]`` holds the episode's values.
     render_mode : {"rgb_array", "human", None}
 
     Version history
@@ -253,6 +285,9 @@ class PTWRollEnv(gym.Env):
         reward_effort_weight: float = 0.01,
         scenario_seed: int | None = None,
         randomize_course: bool = False,
+        actuator: Actuator | None = None,
+        cost: CostConfig | None = None,
+        randomize: Randomization | Mapping | str | None = None,
         render_mode: str | None = None,
     ) -> None:
         super().__init__()
@@ -309,8 +344,38 @@ class PTWRollEnv(gym.Env):
         self.scenario_seed = scenario_seed
         self.randomize_course = bool(randomize_course)
 
+        self.actuator = Actuator() if actuator is None else actuator
+        self.cost_config = CostConfig() if cost is None else cost
+        if not isinstance(self.actuator, Actuator):
+            raise EnvConfigError(f"actuator must be a ptw_env.episode.Actuator, got {type(actuator).__name__}")
+        if not isinstance(self.cost_config, CostConfig):
+            raise EnvConfigError(f"cost must be a ptw_env.episode.CostConfig, got {type(cost).__name__}")
+        try:
+            delay, self._act_alpha, self._act_rate, self._act_limit = self.actuator.discrete(self.dt, self.tau_max)
+        except EpisodeConfigError as exc:
+            raise EnvConfigError(str(exc)) from None
+        self._act_buf = np.zeros(delay + 1)
+        self._fz = np.array([self.vehicle.tires.Fzf, self.vehicle.tires.Fzr])
+        cc = self.cost_config
+        #: ``(grip_limit, roll_limit [rad], torque step limit [N m per period], road_mu)`` of the cost
+        self.cost_limits = (cc.grip_limit, math.radians(cc.roll_limit_deg), cc.torque_rate_limit * self.tau_max * self.dt,
+                            cc.road_mu)
+        try:
+            self.randomization = Randomization.coerce(randomize)
+        except RandomizationError as exc:
+            raise EnvConfigError(str(exc)) from None
+        if self.randomization is not None and friction is not None:
+            raise EnvConfigError("randomize= and friction= together are not supported: randomise "
+                                 "tire_saturation:mu_peak for the road's friction instead")
+        self.randomized: dict[str, float] = {}
+
         self.plant = compile_plant(self.vehicle, self.effects.dynamic)
         self._stepper = Stepper(self.plant, self.dt)
+        if self.randomization is not None and self.randomization.changes_plant:
+            # substeps for the stiffest plant the randomisation can draw (e.g. Coulomb steering friction)
+            stiff = self.randomization.plant(self.vehicle, self.effects, self.randomization.extreme_samples())
+            nsub = max(self._stepper.nsub, substeps_for(self.dt, vehicle=self.vehicle, extra_rate=plant_rate(stiff)))
+            self._stepper = Stepper(self.plant, self.dt, substeps=nsub)
         self.friction = friction
         self._friction = None if friction is None else FrictionPlants(friction, self.vehicle, self.effects, self.dt)
         self._sensors = SensorModel(self.sensor_config, self.effects.sensor, dt=self.dt)
@@ -341,6 +406,19 @@ class PTWRollEnv(gym.Env):
         and prior effects): the design model, separate from the true plant."""
         return compile_plant(self.prior_vehicle, self.prior_effects.dynamic)
 
+    def episode_models(self, samples: Mapping[str, Any]) -> tuple[Effects, SensorModel]:
+        """The true effects and the sensor model of an episode with the randomised ``samples``
+        (:meth:`ptw_env.randomize.Randomization.sample`): the environment's effects with the sampled
+        parameters in place, its sensors with the noise scaled and the biases added."""
+        assert self.randomization is not None
+        eff = self.randomization.effects(self.effects, samples)
+        scale, bias = self.randomization.sensor_terms(samples)
+        cfg = self.sensor_config
+        if scale != 1.0 or bias:
+            cfg = replace(cfg, noise_std={c: v * scale for c, v in cfg.noise_std.items()},
+                          bias={c: v + bias.get(c, 0.0) for c, v in cfg.bias.items()})
+        return eff, SensorModel(cfg, eff.sensor, dt=self.dt)
+
     def _observe(self) -> np.ndarray:
         x = self.state
         y = self._sensors.measure(x, float(self.profile.vx[self._k]), float(self.plant.ay(x)))
@@ -364,6 +442,7 @@ class PTWRollEnv(gym.Env):
             "vx": float(self.profile.vx[k]),
             "measurement": self._last_measurement.copy(),
             **({} if self.friction is None else {"friction": self.friction.mu(k * self.dt, float(self.profile.s[k]))}),
+            **({} if self.randomization is None else {"randomized": dict(self.randomized)}),
         }
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -372,6 +451,12 @@ class PTWRollEnv(gym.Env):
         x0 = options.pop("x0", None)
         if options:
             raise EnvConfigError(f"unknown reset option(s): {sorted(options)}; known: x0")
+        if self.randomization is not None:  # first draws of the episode (ptw_env.randomize)
+            self.randomized = self.randomization.sample(self.np_random)
+            _, self._sensors = self.episode_models(self.randomized)
+            if self.randomization.changes_plant:
+                self.plant = self.randomization.plant(self.vehicle, self.effects, self.randomized)
+                self._stepper = Stepper(self.plant, self.dt, substeps=self._stepper.nsub)
         if x0 is None:
             self.state = np.zeros(8)
             self.state[0] = self.np_random.uniform(-self.init_roll, self.init_roll)
@@ -389,6 +474,8 @@ class PTWRollEnv(gym.Env):
                 raise EnvConfigError(f"randomize_course: {exc}") from None
             self.max_steps = len(self.profile.t) - 1
         self._k = 0
+        self._act_buf[:] = 0.0
+        self._act_prev = 0.0
         self._sensors.reset(self.np_random)
         self._pose[:] = (self.profile.X[0], self.profile.Y[0], self.profile.psi[0])
         self._trace = [(self._pose[0], self._pose[1], self.state[0])]
@@ -421,39 +508,37 @@ class PTWRollEnv(gym.Env):
             else:
                 d_roll += d.value(t, self.np_random)
         x = self.state
-        psi = self._pose[2]
         stepper = self._stepper
         if self._friction is not None:
             stepper = self._friction.stepper(self.friction.mu(t, float(self.profile.s[k])))
-        finite = stepper.step(x, tau + d_tau, vx, d_roll)
-        # planar pose for the picture (forward Euler is plenty for drawing)
-        self._pose[0] += self.dt * (vx * math.cos(psi) - x[2] * math.sin(psi))
-        self._pose[1] += self.dt * (vx * math.sin(psi) + x[2] * math.cos(psi))
-        self._pose[2] += self.dt * x[3]
+        prev = self._act_prev
+        applied = actuate(tau, self._act_buf, k, prev, self._act_alpha, self._act_rate, self._act_limit)
+        self._act_prev = applied
+        finite = stepper.step(x, applied + d_tau, vx, d_roll)
+        advance_pose(self._pose, vx, x[2], x[3], self.dt)
         self._k = k + 1
 
-        terminated = False
-        reason = None
         phi = x[0]
-        if not finite:
-            terminated, reason = True, "diverged"
-            self.state = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
-        elif abs(phi) > FALL_ANGLE:
-            terminated, reason = True, "fell"
         nxt = min(self._k, self.max_steps)
-        if not terminated and not (self.vehicle.vmin <= self.profile.vx[nxt] <= self.vehicle.vmax):
-            terminated, reason = True, "speed_out_of_range"
-        truncated = (not terminated) and self._k >= self.max_steps
-        if truncated:
-            reason = "scenario_end"
+        code = end_code(finite, phi, FALL_ANGLE, self.profile.vx[nxt], self.vehicle.vmin, self.vehicle.vmax,
+                        self._k, self.max_steps)
+        terminated = 0 < code < SCENARIO_END
+        truncated = code == SCENARIO_END
+        reason = REASONS[code] if code else None
+        reward = roll_reward(phi, self.profile.phi_ref[nxt], tau / self.tau_max, self._roll_scale, self._effort_w)
+        if not finite:
+            self.state = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
         self._k = nxt
-
-        err = phi - self.profile.phi_ref[nxt]
-        reward = math.exp(-0.5 * (err / self._roll_scale) ** 2) - self._effort_w * (tau / self.tau_max) ** 2
+        grip, roll_lim, dtau_lim, road_mu = self.cost_limits
+        util = grip_utilisation(self.state, stepper.plant.fmax, self._fz, road_mu)
+        cost = step_cost(util, phi, applied - prev, grip, roll_lim, dtau_lim)
         obs = self._observe()
         info = self._info()
-        info["tau"] = tau
+        info["tau"] = applied
+        info["tau_command"] = tau
         info["action_clipped"] = clipped
+        info["cost"] = cost
+        info["grip_utilisation"] = util
         if reason is not None:
             info["reason"] = reason
         self._trace.append((self._pose[0], self._pose[1], x[0]))
@@ -462,6 +547,31 @@ class PTWRollEnv(gym.Env):
         return obs, float(reward), bool(terminated), bool(truncated), info
 
     # ------------------------------------------------------------------ public view (render, tools)
+    @property
+    def substeps(self) -> int:
+        """RK4 substeps per control period."""
+        return self._stepper.nsub
+
+    @property
+    def axle_loads(self) -> np.ndarray:
+        """Static normal loads ``(Fzf, Fzr)`` [N] of the vehicle's tires."""
+        return self._fz
+
+    @property
+    def sensor_model(self) -> SensorModel:
+        """The current episode's sensor model."""
+        return self._sensors
+
+    @property
+    def obs_bound(self) -> np.ndarray:
+        """Bound of each observation channel (the sensors' full scale), float32."""
+        return self._obs_hi
+
+    @property
+    def reward_params(self) -> tuple[float, float]:
+        """``(s [rad], w)`` of the reward ``exp(-(phi - phi_ref)^2 / (2 s^2)) - w (tau / tau_max)^2``."""
+        return self._roll_scale, self._effort_w
+
     @property
     def step_index(self) -> int:
         """Index ``k`` of the current sample (time ``k dt`` [s]) in the episode's profile."""

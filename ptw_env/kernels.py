@@ -136,27 +136,33 @@ def _rk4_period_c(x, M, c, g, W, vx, inv_sigma, fmax, bank, h, nsub, k1, k2, k3,
 
 
 @njit(cache=True)
-def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
+def scratch():
+    """Work arrays of :func:`advance` ``(M, c, g, k)``: ``M`` (8, 8), ``c`` (8,), ``g`` (8, 2) and ``k`` (5, 8)
+    (the four RK4 stages and a temporary); allocate once per thread, not per step."""
+    return np.empty((8, 8)), np.empty(8), np.empty((8, 2)), np.empty((5, 8))
+
+
+@njit(cache=True)
+def advance(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub, M, c, g, k):
     """Advance one vehicle (``x`` shape (8,), modified in place) by one control
     period ``dt`` with ``tau``, ``vx`` and the roll-moment disturbance ``d`` held;
-    ``nsub`` RK4 substeps. Returns True when the new state is finite."""
-    M = np.empty((8, 8))
-    c = np.empty(8)
-    g = np.empty((8, 2))
-    k1 = np.empty(8)
-    k2 = np.empty(8)
-    k3 = np.empty(8)
-    k4 = np.empty(8)
-    tmp = np.empty(8)
+    ``nsub`` RK4 substeps; ``M, c, g, k`` from :func:`scratch`. Returns True when the new state is finite."""
     fold_vx(W, vx, tau, d, M, c, g)
     if _has_coulomb(W):
-        _rk4_period_c(x, M, c, g, W, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
+        _rk4_period_c(x, M, c, g, W, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k[0], k[1], k[2], k[3], k[4])
     else:
-        _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k1, k2, k3, k4, tmp)
+        _rk4_period(x, M, c, g, vx, inv_sigma, fmax, bank, dt / nsub, nsub, k[0], k[1], k[2], k[3], k[4])
     for i in range(8):
         if not np.isfinite(x[i]):
             return False
     return True
+
+
+@njit(cache=True)
+def step_one(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub):
+    """:func:`advance` with its own work arrays (one vehicle, one period)."""
+    M, c, g, k = scratch()
+    return advance(x, tau, vx, d, W, inv_sigma, fmax, bank, dt, nsub, M, c, g, k)
 
 
 @njit(cache=True, parallel=True)

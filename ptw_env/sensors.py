@@ -72,6 +72,7 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
+from numba import njit
 
 from .effects import Effects, EffectError, as_effects
 from .vehicle import DELTA, DELTA_DOT, G, PHI, PHI_DOT, R
@@ -158,8 +159,10 @@ ENCODER_QUANTUM = 2.0 * math.pi / 1024.0
 #: Default GPS update rate [Hz] (logs.md).
 GPS_RATE_HZ = 10.0
 
-# noise is drawn in blocks of this many samples (one generator call per block)
-_BLOCK = 512
+#: Noise is drawn in blocks of this many samples (one generator call per block). Any block length gives
+#: the same readings within a recording, but a reset draws from the generator after the last block, so
+#: every sensor set that must follow the same stream (single and vector environment) uses this one.
+NOISE_BLOCK = 512
 # delays within this many samples of an integer are treated as that integer
 _DELAY_SNAP = 1e-9
 
@@ -357,6 +360,92 @@ def _scalar_effect(effects: Effects, cause: str, param: str) -> float:
     return float(v)
 
 
+@njit(cache=True)
+def sense_into(x, vx, ay, gain, n_delay, frac, hist, offset, noise, counters, held, q, q_first, gps_step, true, out):
+    """One log row of one sensor set (the module docstring's steps 1-5), the one implementation that
+    :meth:`SensorModel.measure` and the vector environment (:mod:`ptw_env.vector`) call.
+
+    ``x`` (8,) true state, ``vx`` [m/s], ``ay`` [m/s^2] model-frame lateral acceleration at ``t_k``;
+    ``gain`` the ay_frame gravity gain; ``n_delay`` whole and ``frac`` fractional samples of sensor delay;
+    ``hist`` (cap, 6) ring buffer of step-2 vectors; ``offset`` (7,) biases; ``noise`` (B, 7) the current
+    block of scaled noise rows ((0, 7): noise-free), the caller refills it when ``counters[2] == B``;
+    ``counters`` int64 ``[k, gps_index, j]``; ``held`` (1,) the GPS speed held; ``q`` encoder step [rad]
+    (0: none); ``q_first`` quantise before adding noise; ``gps_step`` GPS periods per control period.
+    Writes the true channels to ``true`` (7,) and the measured row to ``out`` (7,), CHANNELS order."""
+    phi = x[PHI]
+    true[0] = x[DELTA]
+    true[1] = x[DELTA_DOT]
+    true[2] = x[R]
+    true[3] = x[PHI_DOT]
+    true[4] = ay
+    true[5] = phi
+    true[6] = vx
+    for i in range(6):
+        out[i] = true[i]
+    if gain != 0.0:  # effects.md, ay_frame
+        out[4] = ay + gain * (ay * np.cos(phi) - G * np.sin(phi) - ay)
+    k = counters[0]
+    counters[0] = k + 1
+    cap = hist.shape[0]
+    if cap > 2 or frac != 0.0:  # effects.md, sensor_delay: y(t_k - delay_s)
+        for i in range(6):
+            hist[k % cap, i] = out[i]
+        j = k - n_delay
+        a = (j if j > 0 else 0) % cap
+        if frac != 0.0:
+            b = (j - 1 if j > 1 else 0) % cap
+            for i in range(6):
+                out[i] = hist[a, i] + frac * (hist[b, i] - hist[a, i])
+        else:
+            for i in range(6):
+                out[i] = hist[a, i]
+    for i in range(6):
+        out[i] += offset[i]
+    has_noise = noise.shape[0] > 0
+    jn = counters[2]
+    # GPS speed: refreshed when a new GPS period starts, held otherwise
+    m = k if gps_step >= 1.0 else int(np.floor(k * gps_step + 1e-9))
+    if m != counters[1]:
+        counters[1] = m
+        held[0] = vx + offset[6] + (noise[jn, 6] if has_noise else 0.0)
+    if has_noise:
+        if q > 0.0 and q_first:
+            out[0] = q * np.rint(out[0] / q) + 0.0  # + 0.0: no -0.0
+        for i in range(6):
+            out[i] += noise[jn, i]
+        if q > 0.0 and not q_first:
+            out[0] = q * np.rint(out[0] / q) + 0.0  # + 0.0: no -0.0
+        counters[2] = jn + 1
+    elif q > 0.0:
+        out[0] = q * np.rint(out[0] / q) + 0.0  # + 0.0: no -0.0
+    out[6] = held[0]
+
+
+def sensor_terms(config: SensorConfig, effects: Effects, n: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(offset, std, gravity_gain)`` of :func:`sense_into` for a sensor configuration and sensor effects:
+    ``offset_c = bias_c (+ gyro_bias on the two gyros)``, ``std_c = noise_std_c``, the ay_frame gain, CHANNELS
+    order. With ``n``, the effects may hold arrays of ``n`` values (one sensor set each) and the results have
+    a leading axis ``n``; without, they must be scalars."""
+    shape = () if n is None else (n,)
+
+    def value(cause: str, param: str) -> np.ndarray:
+        v = np.asarray(effects.value(cause, param), dtype=float)
+        if n is None and v.ndim:
+            raise SensorConfigError(f"effect {cause}:{param} is array-valued (shape {v.shape}); a SensorModel "
+                                    f"measures one vehicle")
+        return np.broadcast_to(v, shape)
+
+    offset = np.empty(shape + (len(CHANNELS),))
+    for j, c in enumerate(CHANNELS):
+        offset[..., j] = config.bias[c]
+    offset[..., CHANNELS.index("yaw_rate")] += value("gyro_bias", "yaw_rate_bias")
+    offset[..., CHANNELS.index("roll_rate")] += value("gyro_bias", "roll_rate_bias")
+    std = np.empty(shape + (len(CHANNELS),))
+    for j, c in enumerate(CHANNELS):
+        std[..., j] = config.noise_std[c]
+    return offset, std, value("ay_frame", "gravity_gain").copy()
+
+
 class SensorModel:
     """Streaming sensor model of one instrumented scooter (see the module docstring).
 
@@ -386,8 +475,8 @@ class SensorModel:
 
     __slots__ = (
         "config", "effects", "dt", "delay_s", "gravity_gain",
-        "_n", "_frac", "_cap", "_hist", "_offset", "_std", "_any_noise", "_q", "_q_first",
-        "_gps_step", "_rng", "_rows", "_j", "_k", "_gps_index", "_vx_held", "_true",
+        "n_delay", "frac_delay", "hist_len", "offset", "std", "quantum", "quantise_first", "gps_step",
+        "_rng", "_noise", "_hist", "_counters", "_held", "_true", "_measured",
     )  # fmt: skip
 
     def __init__(self, config: SensorConfig | None = None, effects: Effects | None = None, dt: float = 0.01) -> None:
@@ -408,37 +497,45 @@ class SensorModel:
         self.config = config
         self.effects = eff
         self.dt = dtf
-        self.gravity_gain = _scalar_effect(eff, "ay_frame", "gravity_gain")
+        offset, std, gain = sensor_terms(config, eff)
+        self.gravity_gain = float(gain)
         self.delay_s = _scalar_effect(eff, "sensor_delay", "delay_s")
         d = self.delay_s / dtf
         if abs(d - round(d)) < _DELAY_SNAP:
             d = float(round(d))
-        self._n = int(math.floor(d))  # whole samples of delay
-        self._frac = d - self._n  # fractional part, weight of the older sample
-        self._cap = self._n + 2
-        offset = dict(config.bias)
-        offset["yaw_rate"] += _scalar_effect(eff, "gyro_bias", "yaw_rate_bias")
-        offset["roll_rate"] += _scalar_effect(eff, "gyro_bias", "roll_rate_bias")
-        self._offset = tuple(offset[c] for c in CHANNELS)
-        self._std = np.array([config.noise_std[c] for c in CHANNELS])
-        self._any_noise = bool(np.any(self._std > 0.0))
-        self._q = config.delta_quantum
-        self._q_first = not config.noise_before_quantisation
-        self._gps_step = dtf * config.gps_rate_hz  # GPS periods per control period
+        #: whole samples of delay, and the fractional part (weight of the older sample)
+        self.n_delay = int(math.floor(d))
+        self.frac_delay = d - self.n_delay
+        #: length of the ring buffer of step-2 vectors (:func:`sense_into`)
+        self.hist_len = self.n_delay + 2
+        #: per-channel offsets (bias and gyro_bias), CHANNELS order
+        self.offset = offset
+        #: per-channel noise standard deviations, CHANNELS order
+        self.std = std
+        #: encoder step [rad], 0 for none
+        self.quantum = 0.0 if config.delta_quantum is None else float(config.delta_quantum)
+        self.quantise_first = not config.noise_before_quantisation
+        #: GPS periods per control period
+        self.gps_step = dtf * config.gps_rate_hz
         self._rng: np.random.Generator | None = None
-        self._true: tuple[float, ...] | None = None
+        self._measured = False
 
     @property
     def delay_samples(self) -> float:
         """``delay_s / dt``: the sensor delay in control periods."""
-        return self._n + self._frac
+        return self.n_delay + self.frac_delay
+
+    @property
+    def noisy(self) -> bool:
+        """True when some channel has noise (the model then draws from its generator)."""
+        return bool(np.any(self.std > 0.0))
 
     @property
     def true_channels(self) -> np.ndarray | None:
         """The 7 channels of the last :meth:`measure` call before any sensor effect,
         bias, noise or quantisation (the exact values at ``t_k``; ``ay`` in the
         model frame; ``vx`` the true speed). ``None`` before the first call."""
-        return None if self._true is None else np.array(self._true)
+        return self._true.copy() if self._measured else None
 
     def reset(self, rng: np.random.Generator | int) -> None:
         """Start a new recording: clear the delay history and the GPS hold.
@@ -448,28 +545,21 @@ class SensorModel:
         rng : numpy.random.Generator or int
             The only source of randomness of the noise (an ``int`` is a seed
             for ``np.random.default_rng``). Noise is drawn from it in blocks of
-            512 samples, so the same generator state gives the same readings.
+            512 samples, so the same generator state gives the same readings
+            (``standard_normal`` fills an array in order, so any block length
+            gives the same readings as long as nothing else draws in between).
         """
         if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
             rng = np.random.default_rng(int(rng))
         if not isinstance(rng, np.random.Generator):
             raise SensorConfigError(f"reset needs a numpy Generator or an integer seed, got {rng!r}")
         self._rng = rng
-        self._hist: list[tuple[float, ...]] = [()] * self._cap
-        self._rows: list[list[float]] = []
-        self._j = 0
-        self._k = 0
-        self._gps_index = -1
-        self._vx_held = math.nan
-        self._true = None
-
-    def _noise_row(self) -> list[float]:
-        if self._j >= len(self._rows):
-            self._rows = (self._rng.standard_normal((_BLOCK, len(CHANNELS))) * self._std).tolist()
-            self._j = 0
-        row = self._rows[self._j]
-        self._j += 1
-        return row
+        self._hist = np.zeros((self.hist_len, 6))
+        self._noise = np.zeros((NOISE_BLOCK if self.noisy else 0, len(CHANNELS)))
+        self._counters = np.array([0, -1, NOISE_BLOCK], dtype=np.int64)  # k, GPS index, noise row
+        self._held = np.full(1, math.nan)
+        self._true = np.zeros(len(CHANNELS))
+        self._measured = False
 
     def measure(self, x: np.ndarray, vx: float, ay: float) -> np.ndarray:
         """One log row: the 7 channels (:data:`CHANNELS` order) at the sample instant ``t_k``.
@@ -493,50 +583,16 @@ class SensorModel:
             raise SensorResetError("SensorModel.measure called before reset(rng)")
         if len(x) != 8:
             raise SensorConfigError(f"measure: x must be the 8 states of model.md, got {len(x)} values")
-        phi = float(x[PHI])
-        ay = float(ay)
-        vx = float(vx)
-        true = (float(x[DELTA]), float(x[DELTA_DOT]), float(x[R]), float(x[PHI_DOT]), ay, phi)
-        self._true = true + (vx,)
-        g = self.gravity_gain
-        if g != 0.0:  # effects.md, ay_frame
-            cur = true[:4] + (ay + g * (ay * math.cos(phi) - G * math.sin(phi) - ay), phi)
-        else:
-            cur = true
-        k = self._k
-        self._k = k + 1
-        if self._cap > 2 or self._frac:  # effects.md, sensor_delay: y(t_k - delay_s)
-            cap = self._cap
-            hist = self._hist
-            hist[k % cap] = cur
-            j = k - self._n
-            new = hist[(j if j > 0 else 0) % cap]
-            if self._frac:
-                old = hist[(j - 1 if j > 1 else 0) % cap]
-                a = self._frac
-                cur = tuple(n + a * (o - n) for n, o in zip(new, old))
-            else:
-                cur = new
-        off = self._offset
-        noise = self._noise_row() if self._any_noise else None
-        out = [c + b for c, b in zip(cur, off)]
-        # GPS speed: refreshed when a new GPS period starts, held otherwise
-        m = k if self._gps_step >= 1.0 else int(math.floor(k * self._gps_step + 1e-9))
-        if m != self._gps_index:
-            self._gps_index = m
-            self._vx_held = vx + off[6] + (noise[6] if noise is not None else 0.0)
-        q = self._q
-        if noise is not None:
-            if q is not None and self._q_first:
-                out[0] = q * round(out[0] / q)
-            for i in range(6):
-                out[i] += noise[i]
-            if q is not None and not self._q_first:
-                out[0] = q * round(out[0] / q)
-        elif q is not None:
-            out[0] = q * round(out[0] / q)
-        out.append(self._vx_held)
-        return np.array(out)
+        noise = self._noise
+        if noise.shape[0] and self._counters[2] >= noise.shape[0]:
+            noise[:] = self._rng.standard_normal(noise.shape) * self.std
+            self._counters[2] = 0
+        out = np.empty(len(CHANNELS))
+        sense_into(np.asarray(x, dtype=float), float(vx), float(ay), self.gravity_gain, self.n_delay,
+                   self.frac_delay, self._hist, self.offset, noise, self._counters, self._held, self.quantum,
+                   self.quantise_first, self.gps_step, self._true, out)
+        self._measured = True
+        return out
 
     def measure_series(self, x: np.ndarray, vx: np.ndarray, ay: np.ndarray) -> np.ndarray:
         """:meth:`measure` over a trajectory (continuing the current stream).

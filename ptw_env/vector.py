@@ -1,0 +1,450 @@
+"""A native vector environment: N roll-tracking episodes stepped by one compiled, parallel kernel.
+
+``gymnasium.make_vec("PTWRoll-v0", num_envs=N, vectorization_mode="vector_entry_point")`` (or
+:class:`PTWRollVectorEnv` directly) steps all N vehicles at once: the same nonlinear plant
+(:func:`ptw_env.kernels.advance`), sensors (:func:`ptw_env.sensors.sense_into`), actuator, reward,
+episode end and safety cost (:mod:`ptw_env.episode`) as :class:`ptw_env.env.PTWRollEnv`, whose
+constructor checks every argument (one copy of the rules).
+
+Conventions (gymnasium 1.x vector API)
+--------------------------------------
+* ``observation_space``/``action_space`` are the single spaces batched; ``single_*`` the single ones.
+* Autoreset: :attr:`gymnasium.vector.AutoresetMode.NEXT_STEP` (gymnasium's default): the step after an
+  episode ends resets that env and returns its first observation with reward 0, ``terminated`` and
+  ``truncated`` False; that step's action is ignored for it.
+* Seeding: ``reset(seed=s)`` seeds env ``i`` with ``s + i`` (a list gives one seed per env), exactly as
+  ``SyncVectorEnv`` does, so env ``i`` follows the single environment reset with ``seed=s + i`` and then
+  reset without a seed at each episode end, to round-off (``tests/test_vector_env.py``). Each env keeps
+  its own generator (``np_random_seed`` lists the seeds).
+* ``reset(options={"reset_mask": mask})`` resets only the masked envs.
+* ``info``: ``t``, ``phi_ref``, ``vx``, ``state`` (N, 8), ``tau``, ``tau_command``, ``action_clipped``,
+  ``cost``, ``grip_utilisation`` for every env, ``reason`` where an episode ended, ``randomized``
+  (key -> array) with ``randomize=``; each with its ``_key`` mask.
+* ``render()`` draws env :attr:`render_env` (``rgb_array``).
+
+Not in the vector environment (a clear error): ``disturbances``, ``friction`` schedules and
+``randomize_course`` (per-step or per-episode Python work that would undo the batching).
+
+Example
+-------
+>>> import gymnasium as gym, numpy as np, ptw_env
+>>> envs = gym.make_vec("PTWRoll-v0", num_envs=4, vectorization_mode="vector_entry_point")
+>>> obs, info = envs.reset(seed=0)
+>>> obs.shape, envs.single_observation_space.shape
+((4, 7), (7,))
+>>> obs, reward, terminated, truncated, info = envs.step(np.zeros((4, 1), dtype=np.float32))
+>>> reward.shape, info["cost"].shape
+((4,), (4,))
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numba
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numba import njit, prange
+
+from .env import FALL_ANGLE, EnvConfigError, PTWRollEnv, advance_pose
+from .episode import REASONS, SCENARIO_END, actuate, end_code, grip_utilisation, roll_reward, step_cost
+from .kernels import advance, scratch
+from .sensors import CHANNELS, NOISE_BLOCK, sense_into, sensor_terms
+
+
+
+@njit(cache=True, parallel=True)
+def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, dt, nsub,
+                vx_prof, ref_prof, fall, vmin, vmax, max_steps,
+                lim, tau_max, normalize, roll_scale, effort_w,
+                abuf, aprev, alpha, rate_step, alimit,
+                grip_limit, roll_limit, dtau_limit, road_mu,
+                gain, n_delay, frac, hist, offset, noise, counters, held, q, q_first, gps_step, true, meas,
+                obs_hi, observe_roll,
+                obs, rew, code, cost, util, tau_cmd, tau_app, clipped, nth):
+    """One period of every env (module docstring): actuator, plant, end, reward and cost for the envs
+    not ``resetting``, then the sensors and the observation of all, in ``nth`` chunks of envs (one per
+    thread, each with its own work arrays). Per env ``i``: state ``x[i]``,
+    sample ``k[i]``, plant ``pidx[i]`` of ``W`` etc. Everything else as :class:`PTWRollEnv.step`."""
+    N = x.shape[0]
+    chunk = (N + nth - 1) // nth
+    nobs = obs.shape[1]
+    for th in prange(nth):
+        M, c, g, ks = scratch()
+        for i in range(th * chunk, min(N, (th + 1) * chunk)):
+            p = pidx[i]
+            if resetting[i]:
+                rew[i] = 0.0
+                code[i] = 0
+                cost[i] = 0.0
+                tau_cmd[i] = 0.0
+                tau_app[i] = 0.0
+                clipped[i] = False
+                util[i] = grip_utilisation(x[i], fmax[p], fz, road_mu)
+            else:
+                u = actions[i]
+                cl = False
+                if u > lim:
+                    u = lim
+                    cl = True
+                elif u < -lim:
+                    u = -lim
+                    cl = True
+                tau = u * tau_max if normalize else u
+                kk = k[i]
+                prev = aprev[i]
+                a = actuate(tau, abuf[i], kk, prev, alpha, rate_step, alimit)
+                aprev[i] = a
+                finite = advance(x[i], a, vx_prof[kk], 0.0, W[p], inv_sigma[p], fmax[p], bank[p], dt, nsub,
+                                 M, c, g, ks)
+                phi = x[i, 0]
+                k1 = kk + 1
+                nxt = k1 if k1 < max_steps else max_steps
+                cd = end_code(finite, phi, fall, vx_prof[nxt], vmin, vmax, k1, max_steps)
+                rew[i] = roll_reward(phi, ref_prof[nxt], tau / tau_max, roll_scale, effort_w)
+                if not finite:
+                    for j in range(8):
+                        if not np.isfinite(x[i, j]):
+                            x[i, j] = 0.0
+                k[i] = nxt
+                ut = grip_utilisation(x[i], fmax[p], fz, road_mu)
+                util[i] = ut
+                cost[i] = step_cost(ut, phi, a - prev, grip_limit, roll_limit, dtau_limit)
+                code[i] = cd
+                tau_cmd[i] = tau
+                tau_app[i] = a
+                clipped[i] = cl
+            kk = k[i]
+            sense_into(x[i], vx_prof[kk], (x[i, 6] + x[i, 7]) / mass[p], gain[i], n_delay, frac, hist[i],
+                       offset[i], noise[i], counters[i], held[i], q, q_first, gps_step, true[i], meas[i])
+            for j in range(5):
+                obs[i, j] = meas[i, j]
+            obs[i, 5] = meas[i, 6]
+            obs[i, 6] = ref_prof[kk]
+            if observe_roll:
+                obs[i, 7] = meas[i, 5]
+            for j in range(nobs):
+                if obs[i, j] > obs_hi[j]:
+                    obs[i, j] = obs_hi[j]
+                elif obs[i, j] < -obs_hi[j]:
+                    obs[i, j] = -obs_hi[j]
+
+
+class PTWRollVectorEnv(VectorEnv):
+    """N roll-tracking environments in one batched kernel (module docstring).
+
+    Parameters
+    ----------
+    num_envs : int
+    max_episode_steps : int, optional
+        Truncate episodes after this many steps (``gymnasium.make_vec`` passes the registered limit).
+    render_env : int
+        Which env :meth:`render` draws.
+    **kwargs
+        Every argument of :class:`ptw_env.env.PTWRollEnv` (scenario, vehicle, sensors, noise_pct, effects,
+        actuator, cost, randomize, ...), with the same meaning and checks.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 25, "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, *, max_episode_steps: int | None = None, render_env: int = 0,
+                 **kwargs: Any) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise EnvConfigError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if kwargs.get("render_mode") not in (None, "rgb_array"):
+            raise EnvConfigError(f"render_mode of the vector env must be 'rgb_array' or None, got {kwargs['render_mode']!r}")
+        for name in ("disturbances", "friction", "randomize_course"):
+            if kwargs.get(name):
+                raise EnvConfigError(f"{name}= is not supported by the vector env (use the single env through "
+                                     f"gymnasium.vector.SyncVectorEnv, or randomize= for per-episode variation)")
+        n = int(num_envs)
+        if not (isinstance(render_env, (int, np.integer)) and 0 <= render_env < n):
+            raise EnvConfigError(f"render_env must be an env index in [0, {n}), got {render_env!r}")
+        self.template = PTWRollEnv(**kwargs)  # checks every argument; the single env's rules
+        tpl = self.template
+        if max_episode_steps is not None:
+            if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
+                raise EnvConfigError(f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}")
+        self.max_steps = min(tpl.max_steps, int(max_episode_steps or tpl.max_steps))
+        self.num_envs = n
+        self.render_mode = tpl.render_mode
+        self.render_env = int(render_env)
+        self.single_action_space = tpl.action_space
+        self.single_observation_space = tpl.observation_space
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self.randomization = tpl.randomization
+        self.dt = tpl.dt
+
+        # the plant: one shared, or one per env when randomisation changes it
+        self.nsub = tpl.substeps
+        per_env = self.randomization is not None and self.randomization.changes_plant
+        W, s, f, b = tpl.plant.flat()
+        K = n if per_env else 1
+        self._W = np.ascontiguousarray(np.repeat(W, K, axis=0))
+        self._inv_sigma = np.repeat(s, K, axis=0)
+        self._fmax = np.repeat(f, K, axis=0)
+        self._bank = np.repeat(b, K, axis=0)
+        self._mass = np.full(K, float(tpl.plant.mass))
+        self._pidx = np.arange(n) if per_env else np.zeros(n, dtype=np.int64)
+        self._fz = tpl.axle_loads
+        sm = tpl.sensor_model
+        self._n_delay, self._frac, self._q, self._q_first, self._gps_step = (
+            sm.n_delay, sm.frac_delay, sm.quantum, sm.quantise_first, sm.gps_step)
+        self._base_offset, self._base_std, self._base_gain = sm.offset, sm.std, sm.gravity_gain
+        self._noisy = sm.noisy or (self.randomization is not None and "sensor_noise_scale" in self.randomization.keys
+                                   and bool(np.any(sm.std > 0)))
+        delay, self._alpha, self._rate_step, self._alimit = tpl.actuator.discrete(tpl.dt, tpl.tau_max)
+        nobs = self.single_observation_space.shape[0]
+
+        # per-env state
+        self.state = np.zeros((n, 8))
+        self._k = np.zeros(n, dtype=np.int64)
+        self._abuf = np.zeros((n, delay + 1))
+        self._aprev = np.zeros(n)
+        self._gain = np.full(n, self._base_gain)
+        self._offset = np.repeat(self._base_offset[None], n, axis=0)
+        self._std = np.repeat(self._base_std[None], n, axis=0)
+        self._hist = np.zeros((n, sm.hist_len, 6))
+        self._noise = np.zeros((n, NOISE_BLOCK if self._noisy else 0, len(CHANNELS)))
+        self._counters = np.zeros((n, 3), dtype=np.int64)
+        self._held = np.zeros((n, 1))
+        self._true = np.zeros((n, len(CHANNELS)))
+        self._meas = np.zeros((n, len(CHANNELS)))
+        self._obs = np.zeros((n, nobs), dtype=np.float32)
+        self._rew = np.zeros(n)
+        self._code = np.zeros(n, dtype=np.int64)
+        self._cost = np.zeros(n)
+        self._util = np.zeros(n)
+        self._tau_cmd = np.zeros(n)
+        self._tau_app = np.zeros(n)
+        self._clipped = np.zeros(n, dtype=np.bool_)
+        self._prev_done = np.zeros(n, dtype=np.bool_)
+        self._rngs: list[np.random.Generator] = []
+        self._seeds: list[int | None] = []
+        self._randomized = {key: np.zeros(n) for key in (self.randomization.keys if self.randomization else ())}
+        self._pose = np.zeros(3)
+        self._trace: list[tuple[float, float, float]] = []
+        self._fig = None
+        self._obs_hi = tpl.obs_bound.astype(np.float32)
+        self._all = np.ones(n, dtype=np.bool_)
+        self._ready = False
+
+    # ------------------------------------------------------------------ public view
+    @property
+    def step_index(self) -> np.ndarray:
+        """Sample index ``k`` of every env's episode (time ``k dt`` [s])."""
+        return self._k.copy()
+
+    def plant_of(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """``(W, inv_sigma, fmax, bank)`` of env ``i``'s plant this episode (:meth:`ptw_env.dynamics.Plant.flat`)."""
+        p = self._pidx[i]
+        return self._W[p].copy(), self._inv_sigma[p].copy(), self._fmax[p].copy(), float(self._bank[p])
+
+    @property
+    def np_random_seed(self) -> tuple[int | None, ...]:
+        """The seed each env's generator was last created from (``None``: from the OS)."""
+        return tuple(self._seeds)
+
+    @property
+    def memory_bytes(self) -> int:
+        """Bytes of per-env arrays (state, plant, sensors, actuator, outputs) held by this vector env."""
+        arrays = [v for v in vars(self).values() if isinstance(v, np.ndarray)]
+        arrays += list(self._randomized.values())
+        return int(sum(a.nbytes for a in arrays))
+
+    # ------------------------------------------------------------------ resets
+    def _reset_envs(self, idx: np.ndarray, seeds: Sequence[int | None] | None, x0: np.ndarray | None) -> None:
+        """Reset the envs ``idx``: new generators when ``seeds`` is given, then (in the single env's order)
+        randomised values, starting roll, actuator and sensors."""
+        tpl = self.template
+        if seeds is not None:
+            for i, sd in zip(idx, seeds):
+                self._rngs[i], self._seeds[i] = seeding.np_random(sd)
+        rnd = self.randomization
+        if rnd is not None:
+            samples = rnd.sample_many([self._rngs[i] for i in idx])
+            for key, v in samples.items():
+                self._randomized[key][idx] = v
+            if rnd.changes_plant:
+                plant = rnd.plant(tpl.vehicle, tpl.effects, samples)
+                W, s, f, b = plant.flat()
+                self._W[idx], self._inv_sigma[idx], self._fmax[idx], self._bank[idx] = W, s, f, b
+                self._mass[idx] = np.broadcast_to(plant.mass, (len(idx),))
+            if any(k.startswith("sensor") or k.partition(":")[0] in ("gyro_bias", "ay_frame") for k in rnd.keys):
+                # as PTWRollEnv.episode_models, for all the resetting envs at once
+                eff = rnd.effects(tpl.effects, samples)
+                scale, bias = rnd.sensor_terms(samples)
+                cfg = tpl.sensor_config
+                off, std, gain = sensor_terms(cfg, eff.sensor, len(idx))
+                for c, b in bias.items():
+                    j = CHANNELS.index(c)
+                    off[:, j] = cfg.bias[c] + b
+                    if c in ("yaw_rate", "roll_rate"):
+                        off[:, j] += np.broadcast_to(eff.sensor.value("gyro_bias", f"{c}_bias"), (len(idx),))
+                self._offset[idx], self._std[idx] = off, std * np.asarray(scale, dtype=float).reshape(-1, 1)
+                self._gain[idx] = gain
+        for j, i in enumerate(idx):
+            if x0 is None:
+                self.state[i] = 0.0
+                self.state[i, 0] = self._rngs[i].uniform(-tpl.init_roll, tpl.init_roll)
+            else:
+                self.state[i] = x0
+        self._k[idx] = 0
+        self._abuf[idx] = 0.0
+        self._aprev[idx] = 0.0
+        self._hist[idx] = 0.0
+        self._counters[idx] = (0, -1, self._noise.shape[1])
+        self._held[idx] = math.nan
+        self._prev_done[idx] = False
+        if self.render_env in idx:
+            self._pose[:] = (tpl.profile.X[0], tpl.profile.Y[0], tpl.profile.psi[0])
+            self._trace = [(self._pose[0], self._pose[1], self.state[self.render_env, 0])]
+
+    def _refill_noise(self) -> None:
+        B = self._noise.shape[1]
+        if B == 0:
+            return
+        for i in np.flatnonzero(self._counters[:, 2] >= B):
+            self._noise[i] = self._rngs[i].standard_normal((B, len(CHANNELS))) * self._std[i]
+            self._counters[i, 2] = 0
+
+    def _run(self, actions: np.ndarray, resetting: np.ndarray) -> None:
+        tpl = self.template
+        self._refill_noise()
+        vmin, vmax = tpl.vehicle.vmin, tpl.vehicle.vmax
+        grip, roll_lim, dtau_lim, road_mu = tpl.cost_limits
+        vector_step(actions, resetting, self.state, self._k, self._pidx, self._W, self._inv_sigma, self._fmax,
+                    self._bank, self._mass, self._fz, tpl.dt, self.nsub, tpl.profile.vx, tpl.profile.phi_ref,
+                    FALL_ANGLE, vmin, vmax, self.max_steps,
+                    float(self.single_action_space.high[0]), tpl.tau_max, tpl.normalize_action, *tpl.reward_params,
+                    self._abuf, self._aprev, self._alpha, self._rate_step, self._alimit,
+                    grip, roll_lim, dtau_lim, road_mu,
+                    self._gain, self._n_delay, self._frac, self._hist, self._offset, self._noise, self._counters,
+                    self._held, self._q, self._q_first, self._gps_step, self._true, self._meas,
+                    self._obs_hi, tpl.observe_roll,
+                    self._obs, self._rew, self._code, self._cost, self._util, self._tau_cmd, self._tau_app,
+                    self._clipped, min(numba.get_num_threads(), self.num_envs))
+
+    def _info(self, done: np.ndarray | None) -> dict[str, Any]:
+        k = self._k
+        info: dict[str, Any] = {
+            "t": k * self.dt,
+            "phi_ref": self.template.profile.phi_ref[k],
+            "vx": self.template.profile.vx[k],
+            "state": self.state.copy(),
+            "tau": self._tau_app.copy(),
+            "tau_command": self._tau_cmd.copy(),
+            "action_clipped": self._clipped.copy(),
+            "cost": self._cost.copy(),
+            "grip_utilisation": self._util.copy(),
+        }
+        for key in list(info):
+            info["_" + key] = self._all
+        if self._randomized:
+            info["randomized"] = {key: v.copy() for key, v in self._randomized.items()}
+            info["_randomized"] = self._all
+        if done is not None and done.any():
+            reason = np.full(self.num_envs, None, dtype=object)
+            for i in np.flatnonzero(done):
+                reason[i] = REASONS[self._code[i]]
+            info["reason"] = reason
+            info["_reason"] = done.copy()
+        return info
+
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
+        """Reset every env (or those of ``options["reset_mask"]``); ``options["x0"]``: one starting state (8,)."""
+        n = self.num_envs
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        x0 = options.pop("x0", None)
+        if options:
+            raise EnvConfigError(f"unknown reset option(s): {sorted(options)}; known: reset_mask, x0")
+        if mask is None:
+            mask = self._all
+        elif not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,) and mask.any()):
+            raise EnvConfigError(f"options['reset_mask'] must be a bool array of shape ({n},) with a True value, got {mask!r}")
+        if x0 is not None:
+            x0 = np.asarray(x0, dtype=float)
+            if x0.shape != (8,) or not np.all(np.isfinite(x0)):
+                raise EnvConfigError(f"reset option x0 must be 8 finite numbers (the state of model.md), got {x0!r}")
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds: list[int | None] = [int(seed) + i for i in range(n)]
+        elif seed is None:
+            seeds = [None] * n
+        elif isinstance(seed, Sequence) and len(seed) == n:
+            seeds = list(seed)
+        else:
+            raise EnvConfigError(f"seed must be an int, None or a list of {n} seeds, got {seed!r}")
+        first = not self._rngs
+        if first:  # the first reset creates every env's generator
+            self._rngs = [np.random.default_rng(0)] * n
+            self._seeds = [None] * n
+            mask = self._all
+        idx = np.flatnonzero(mask)
+        # a seed (or the first reset) makes new generators; otherwise each env's generator goes on
+        fresh = [seeds[i] for i in idx] if (seed is not None or first) else None
+        self._reset_envs(idx, fresh, x0)
+        resetting = np.zeros(n, dtype=np.bool_)
+        resetting[idx] = True
+        self._run(np.zeros(n), resetting)
+        self._ready = True
+        return self._obs.copy(), self._info(None)
+
+    def step(self, actions):
+        if not self._ready:
+            raise EnvConfigError("step() called before reset()")
+        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
+        if a.shape[1] != 1:
+            raise EnvConfigError(f"actions must have shape ({self.num_envs}, 1), got {np.shape(actions)}")
+        a = a[:, 0]
+        if not np.all(np.isfinite(a)):
+            bad = int(np.flatnonzero(~np.isfinite(a))[0])
+            raise EnvConfigError(f"action of env {bad} is not finite: {a[bad]!r}")
+        resetting = self._prev_done.copy()
+        idx = np.flatnonzero(resetting)
+        if len(idx):
+            self._reset_envs(idx, None, None)
+        self._run(np.ascontiguousarray(a), resetting)
+        code = self._code
+        terminated = (code > 0) & (code < SCENARIO_END)
+        truncated = code == SCENARIO_END
+        done = terminated | truncated
+        self._prev_done = done
+        if self.render_mode is not None:
+            r = self.render_env
+            if not resetting[r]:
+                x = self.state[r]
+                advance_pose(self._pose, float(self.template.profile.vx[max(self._k[r] - 1, 0)]), x[2], x[3], self.dt)
+                self._trace.append((self._pose[0], self._pose[1], x[0]))
+        return self._obs.copy(), self._rew.copy(), terminated, truncated, self._info(done)
+
+    def render(self):
+        """The frame of env :attr:`render_env` (``rgb_array``), drawn as the single env draws."""
+        if self.render_mode is None:
+            return None
+        from .render import draw_frame
+
+        return draw_frame(_View(self))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self.template.close()
+
+
+class _View:
+    """What :func:`ptw_env.render.draw_frame` reads, for the env the vector env renders."""
+
+    def __init__(self, venv: PTWRollVectorEnv) -> None:
+        r = venv.render_env
+        tpl = venv.template
+        self.profile, self.scenario, self.dt = tpl.profile, tpl.scenario, tpl.dt
+        self.state = venv.state[r]
+        self.step_index = int(venv._k[r])
+        self.pose = tuple(float(v) for v in venv._pose)
+        self.trace = np.asarray(venv._trace, dtype=float).reshape(-1, 3)
+
+
+__all__ = ["PTWRollVectorEnv", "vector_step"]

@@ -1,0 +1,260 @@
+"""The native vector environment (issue 21): the same episodes as the single env, gymnasium's vector
+conventions, the actuator, the safety cost and domain randomisation, each against an independent
+reference (the single env, a closed-form response, the state in ``info``)."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from gymnasium.vector import AutoresetMode
+
+import ptw_env  # noqa: F401  (registers the ids)
+from ptw_env.env import EnvConfigError, PTWRollEnv
+from ptw_env.episode import Actuator, CostConfig
+from ptw_env.randomize import Randomization, RandomizationError
+from ptw_env.vector import PTWRollVectorEnv
+
+
+def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_scale: float) -> tuple[float, int, int]:
+    """Step a vector env and n single envs with the same random actions (single env i reset with seed
+    seed + i, then without a seed at each episode end, as NEXT_STEP autoreset does). Returns the largest
+    difference of observation, reward, state and cost, the number of episode ends and of steps compared."""
+    venv = PTWRollVectorEnv(num_envs=n, **kwargs)
+    singles = [PTWRollEnv(**kwargs) for _ in range(n)]
+    obs, info = venv.reset(seed=seed)
+    diff = 0.0
+    for i, e in enumerate(singles):
+        o, inf = e.reset(seed=seed + i)
+        diff = max(diff, float(np.max(np.abs(o - obs[i]))), float(np.max(np.abs(inf["state"] - info["state"][i]))))
+    rng = np.random.default_rng(seed)
+    done = np.zeros(n, dtype=bool)
+    ends = 0
+    for _ in range(steps):
+        a = (rng.uniform(0.0, 1.0, (n, 1)) * action_scale).astype(np.float32)  # leans one way: falls
+        obs, rew, term, trunc, info = venv.step(a)
+        for i, e in enumerate(singles):
+            if done[i]:
+                o, inf = e.reset()
+                r, te, tr, cost = 0.0, False, False, 0.0
+            else:
+                o, r, te, tr, inf = e.step(a[i])
+                cost = inf["cost"]
+                if te or tr:
+                    ends += 1
+                    assert info["reason"][i] == inf["reason"]
+            assert (te, tr) == (term[i], trunc[i])
+            done[i] = te or tr
+            diff = max(diff, float(np.max(np.abs(o - obs[i]))), abs(r - rew[i]),
+                       float(np.max(np.abs(inf["state"] - info["state"][i]))), abs(cost - info["cost"][i]))
+    return diff, ends, steps
+
+
+@pytest.mark.parametrize("case", ["default", "effects_actuator", "randomized"])
+def test_env_i_equals_single_env_through_resets(case):
+    """Same seeds, same actions: env i of the vector env and a single env agree to round-off, including
+    across episode ends (falls under random torques) and autoresets."""
+    kwargs: dict = {"scenario": "slalom", "speed_kmh": 40}
+    scale = 60.0
+    if case == "effects_actuator":
+        kwargs.update(effects={"sensor_delay": {"delay_s": 0.025}, "ay_frame": {"gravity_gain": 1.0},
+                               "tire_saturation": {"mu_peak": 0.6}, "payload": {"mass_kg": 20.0}},
+                      actuator=Actuator(delay_s=0.02, bandwidth_hz=8.0, rate_limit=400.0),
+                      observe_roll=True, normalize_action=True)
+        scale = 1.0
+    elif case == "randomized":
+        kwargs.update(randomize={"tire_saturation:mu_peak": ("uniform", 0.4, 1.0), "payload:mass_kg": ("normal", 0, 15),
+                                 "sensor_noise_scale": ("uniform", 0.5, 2.0), "gyro_bias:yaw_rate_bias": ("normal", 0, 0.01),
+                                 "sensor_bias:ay": ("uniform", -0.1, 0.1)})
+    diff, ends, _ = replay_against_single(kwargs, n=3, steps=600, seed=11, action_scale=scale)
+    assert ends >= 3, "the replay must cross episode ends to test the autoreset"
+    # compiled batched plants (randomised) differ from one-by-one ones only by round-off
+    assert diff <= (1e-9 if case == "randomized" else 0.0)
+
+
+def test_make_vec_and_vector_conventions():
+    envs = gym.make_vec("PTWRoll-Slalom-v0", num_envs=5, vectorization_mode="vector_entry_point")
+    u = envs.unwrapped
+    assert isinstance(u, PTWRollVectorEnv) and u.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert envs.observation_space.shape == (5,) + envs.single_observation_space.shape
+    assert envs.action_space.shape == (5, 1)
+    obs, info = envs.reset(seed=3)
+    assert obs in envs.observation_space and obs.dtype == np.float32
+    assert u.np_random_seed == (3, 4, 5, 6, 7)
+    assert set(info) >= {"state", "_state", "cost", "_cost"} and info["_state"].all()
+    obs2, _ = envs.reset(seed=3)
+    np.testing.assert_array_equal(obs, obs2)  # reset(seed) reproduces
+    obs3, _ = envs.reset(seed=[3, 4, 5, 6, 8])
+    np.testing.assert_array_equal(obs3[:4], obs[:4])
+    assert not np.array_equal(obs3[4], obs[4])
+
+
+def test_next_step_autoreset_and_reset_mask():
+    """The step after an episode ends returns that env's first observation, reward 0 and no end; the
+    action is ignored for it; a reset_mask resets only the masked envs."""
+    venv = PTWRollVectorEnv(num_envs=2, scenario="slalom", speed_kmh=40, init_roll_deg=0.0)
+    venv.reset(seed=0)
+    a = np.array([[60.0], [0.0]], dtype=np.float32)  # full torque on env 0 throws it over
+    for _ in range(400):
+        obs, rew, term, trunc, info = venv.step(a)
+        if term[0]:
+            break
+    assert term[0] and info["reason"][0] == "fell" and not info["_reason"][1]
+    k1 = venv.step_index[1]
+    obs, rew, term, trunc, info = venv.step(a)
+    assert rew[0] == 0.0 and not term[0] and not trunc[0]
+    assert info["t"][0] == 0.0 and np.all(info["state"][0, 1:] == 0.0)  # env 0 restarted upright
+    assert venv.step_index[1] == k1 + 1  # env 1 went on
+    mask = np.array([False, True])
+    venv.reset(options={"reset_mask": mask})
+    assert venv.step_index.tolist() == [1, 0]
+    with pytest.raises(EnvConfigError, match="reset_mask"):
+        venv.reset(options={"reset_mask": np.array([1, 0])})
+
+
+def test_bad_vector_arguments_are_named():
+    with pytest.raises(EnvConfigError, match="num_envs"):
+        PTWRollVectorEnv(num_envs=0)
+    with pytest.raises(EnvConfigError, match="friction"):
+        PTWRollVectorEnv(num_envs=2, friction=object())
+    with pytest.raises(EnvConfigError, match="speed_kmh|vehicle|range"):
+        PTWRollVectorEnv(num_envs=2, speed_kmh=500)
+    venv = PTWRollVectorEnv(num_envs=2)
+    with pytest.raises(EnvConfigError, match="before reset"):
+        venv.step(np.zeros((2, 1)))
+    venv.reset(seed=0)
+    with pytest.raises(EnvConfigError, match="env 1 is not finite"):
+        venv.step(np.array([[0.0], [np.nan]]))
+
+
+def test_render_one_env():
+    venv = PTWRollVectorEnv(num_envs=3, render_mode="rgb_array", render_env=2)
+    venv.reset(seed=0)
+    for _ in range(5):
+        venv.step(np.zeros((3, 1), dtype=np.float32))
+    single = PTWRollEnv(render_mode="rgb_array")
+    single.reset(seed=2)
+    for _ in range(5):
+        single.step(np.zeros(1, dtype=np.float32))
+    np.testing.assert_array_equal(venv.render(), single.render())
+
+
+def test_single_env_passes_the_checkers():
+    check_env(PTWRollEnv(actuator=Actuator(delay_s=0.02), randomize={"tire_stiffness:scale": ("uniform", 0.8, 1.2)}),
+              skip_render_check=True)
+    sb3 = pytest.importorskip("stable_baselines3.common.env_checker")
+    sb3.check_env(PTWRollEnv(normalize_action=True), warn=False)
+
+
+# ---------------------------------------------------------------- actuator
+def _torques(actuator: Actuator, commands: np.ndarray) -> np.ndarray:
+    env = PTWRollEnv(scenario="constant_radius", actuator=actuator, init_roll_deg=0.0)
+    env.reset(seed=0)
+    return np.array([env.step(np.array([c], dtype=np.float32))[4]["tau"] for c in commands])
+
+
+def test_actuator_delay_lag_rate_and_saturation():
+    dt = 0.01
+    step = np.full(60, 10.0)
+    # transport delay: the applied torque is the command D periods earlier
+    np.testing.assert_array_equal(_torques(Actuator(delay_s=0.05), step)[:5], 0.0)
+    np.testing.assert_array_equal(_torques(Actuator(delay_s=0.05), step)[5:], 10.0)
+    # first-order lag: the step response 1 - exp(-2 pi f t) at the period ends
+    f = 5.0
+    t = dt * np.arange(1, 61)
+    np.testing.assert_allclose(_torques(Actuator(bandwidth_hz=f), step), 10.0 * (1 - np.exp(-2 * math.pi * f * t)), rtol=1e-12)
+    # rate limit: a ramp of rate * dt per period up to the command
+    np.testing.assert_allclose(_torques(Actuator(rate_limit=100.0), step)[:12], np.minimum(1.0 * np.arange(1, 13), 10.0))
+    # saturation
+    assert np.max(np.abs(_torques(Actuator(torque_limit=4.0), np.full(5, -50.0)))) == 4.0
+    with pytest.raises(EnvConfigError, match="whole number of control periods"):
+        PTWRollEnv(actuator=Actuator(delay_s=0.015))
+
+
+# ---------------------------------------------------------------- cost
+def test_cost_counts_each_broken_limit():
+    """Grip utilisation recomputed from the tire forces in info['state'] and the axle loads; roll and torque
+    rate limits each add one."""
+    env = PTWRollEnv(scenario="constant_radius", effects={"tire_saturation": {"mu_peak": 0.5}},
+                     cost=CostConfig(grip_limit=0.3, roll_limit_deg=10.0, torque_rate_limit=1.0))
+    env.reset(seed=0)
+    fz = np.array([env.vehicle.tires.Fzf, env.vehicle.tires.Fzr])
+    seen = set()
+    prev = 0.0
+    for k in range(600):
+        _, _, term, trunc, info = env.step(np.array([2.0 if k % 50 < 25 else -2.0], dtype=np.float32))
+        x = info["state"]
+        util = np.max(np.abs(x[6:8]) / (0.5 * fz))
+        assert info["grip_utilisation"] == pytest.approx(util, rel=1e-12)
+        expect = (util > 0.3) + (abs(x[0]) > math.radians(10)) + (abs(info["tau"] - prev) > 1.0 * env.tau_max * env.dt)
+        assert info["cost"] == expect
+        seen.add(info["cost"])
+        prev = info["tau"]
+        if term or trunc:
+            break
+    assert len(seen) >= 2  # the ride both breaks and keeps limits
+
+
+# ---------------------------------------------------------------- randomisation
+def test_randomization_draws_and_plant():
+    r = {"tire_saturation:mu_peak": ("uniform", 0.3, 0.9), "payload:mass_kg": ("normal", 10.0, 5.0, 0.0, 20.0),
+         "road_bank:bank_rad": ("choice", [-0.02, 0.02])}
+    venv = PTWRollVectorEnv(num_envs=400, randomize=r)
+    _, info = venv.reset(seed=0)
+    mu = info["randomized"]["tire_saturation:mu_peak"]
+    m = info["randomized"]["payload:mass_kg"]
+    assert 0.3 <= mu.min() and mu.max() <= 0.9 and abs(mu.mean() - 0.6) < 4 * 0.6 / math.sqrt(12 * 400)
+    assert 0.0 <= m.min() and m.max() <= 20.0 and abs(np.median(m) - 10.0) < 1.0
+    assert set(info["randomized"]["road_bank:bank_rad"]) == {-0.02, 0.02}
+    # the plant of env i is the compiled plant of its draws
+    i = 7
+    p = ptw_env.compile_plant(venv.template.vehicle, {"tire_saturation": {"mu_peak": mu[i]}, "payload": {"mass_kg": m[i]},
+                                                       "road_bank": {"bank_rad": info["randomized"]["road_bank:bank_rad"][i]}})
+    W, _, fmax, bank = venv.plant_of(i)
+    np.testing.assert_allclose(fmax, p.fmax, rtol=1e-15)
+    np.testing.assert_allclose(W, p.W, rtol=1e-12, atol=1e-12)
+    assert bank == p.bank
+    # the same seed, the same draws; a single env seeded 7 draws env 7's values
+    single = PTWRollEnv(randomize=r)
+    _, sinfo = single.reset(seed=i)
+    assert sinfo["randomized"]["tire_saturation:mu_peak"] == mu[i]
+
+
+def test_randomization_errors_name_the_key():
+    with pytest.raises(RandomizationError, match="tire_saturation:mu_peak.*physical range"):
+        Randomization({"tire_saturation:mu_peak": ("uniform", 0.0, 1.0)})
+    with pytest.raises(RandomizationError, match="unknown key 'tyre:mu'"):
+        Randomization({"tyre:mu": 1.0})
+    with pytest.raises(RandomizationError, match="sensor_delay"):
+        Randomization({"sensor_delay:delay_s": ("uniform", 0.0, 0.02)})
+    with pytest.raises(EnvConfigError, match="loguniform needs low > 0"):
+        PTWRollEnv(randomize={"payload:mass_kg": ("loguniform", 0, 5)})
+    r = Randomization({"payload:mass_kg": {"dist": "normal", "mean": 0, "std": 5}, "sensor_noise_scale": 2})
+    assert Randomization(r.to_json()) == r
+
+
+def test_sb3_trains_on_the_vector_env():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from assist.rl.vecenv import SB3VecEnv
+
+    venv = SB3VecEnv(gym.make_vec("PTWRollNorm-v0", num_envs=16, vectorization_mode="vector_entry_point"))
+    model = PPO("MlpPolicy", venv, n_steps=16, batch_size=128, n_epochs=1, seed=0, device="cpu")
+    model.learn(512)
+    assert model.num_timesteps >= 512
+    # terminal observations reach SB3 as its contract says
+    venv.seed(0)
+    venv.reset()
+    for _ in range(300):
+        obs, rew, done, infos = venv.step(np.ones((16, 1), dtype=np.float32))
+        if done.any():
+            i = int(np.flatnonzero(done)[0])
+            assert "terminal_observation" in infos[i] and infos[i]["TimeLimit.truncated"] is False
+            assert venv.venv.unwrapped.step_index[i] == 0
+            break
+    else:
+        pytest.fail("full torque should throw a vehicle over within 3 s")
