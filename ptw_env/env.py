@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, replace
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -240,6 +240,13 @@ class PTWRollEnv(gym.Env):
         Steer actuator delay, bandwidth, rate limit and torque saturation (default: ideal).
     cost : CostConfig, optional
         Limits of the safety cost ``info["cost"]`` (default :class:`~ptw_env.episode.CostConfig`).
+    scenario_pool : sequence of scenario names or Scenario objects, optional
+        Rides drawn per episode: every ``reset`` picks one uniformly from the environment's generator
+        (names take ``speed_kmh``); ``scenario`` is then only the first ride before the first reset.
+        With ``gymnasium.make`` pass ``max_episode_steps`` for the longest ride (the id's limit is its
+        own scenario's).
+    mirror : bool
+        Mirror each episode left/right with probability 1/2 (:meth:`ptw_env.scenarios.Profile.mirrored`).
     randomize : Randomization, mapping or JSON file, optional
         Domain randomisation (:mod:`ptw_env.randomize`): effect parameters, sensor noise and bias drawn
         from seeded distributions at every ``reset``; ``info["randomized"]`` holds the episode's values.
@@ -288,6 +295,8 @@ class PTWRollEnv(gym.Env):
         actuator: Actuator | None = None,
         cost: CostConfig | None = None,
         randomize: Randomization | Mapping | str | None = None,
+        scenario_pool: Sequence[str | Scenario] | None = None,
+        mirror: bool = False,
         render_mode: str | None = None,
     ) -> None:
         super().__init__()
@@ -385,6 +394,28 @@ class PTWRollEnv(gym.Env):
         except ScenarioError as exc:
             raise EnvConfigError(str(exc)) from None
         self.max_steps = len(self.profile.t) - 1
+        self.mirror = bool(mirror)
+        #: the rides an episode is drawn from (each (profile, mirrored profile)); one ride without a pool
+        self.pool: list[tuple[Any, Any]] = []
+        if scenario_pool is not None:
+            if self.randomize_course:
+                raise EnvConfigError("scenario_pool= and randomize_course= together are not supported")
+            if isinstance(scenario_pool, (str, Scenario)) or not len(scenario_pool):
+                raise EnvConfigError("scenario_pool must be a non-empty list of scenario names or Scenario objects")
+            for j, sc in enumerate(scenario_pool):
+                if isinstance(sc, str):
+                    sc = make_scenario(sc, speed_kmh=speed_kmh)
+                elif not isinstance(sc, Scenario):
+                    raise EnvConfigError(f"scenario_pool[{j}] must be a scenario name or a Scenario, got {type(sc).__name__}")
+                prof = sc.profile(self.dt, seed=scenario_seed)
+                try:
+                    prof.check_vehicle(self.vehicle)
+                except ScenarioError as exc:
+                    raise EnvConfigError(f"scenario_pool[{j}]: {exc}") from None
+                self.pool.append((prof, prof.mirrored()))
+        else:
+            self.pool.append((self.profile, self.profile.mirrored()))
+        self.ride_index, self.mirrored = 0, False
 
         a = 1.0 if self.normalize_action else self.tau_max
         self.action_space = spaces.Box(-a, a, shape=(1,), dtype=np.float32)
@@ -443,6 +474,7 @@ class PTWRollEnv(gym.Env):
             "measurement": self._last_measurement.copy(),
             **({} if self.friction is None else {"friction": self.friction.mu(k * self.dt, float(self.profile.s[k]))}),
             **({} if self.randomization is None else {"randomized": dict(self.randomized)}),
+            **({} if len(self.pool) == 1 and not self.mirror else {"ride": self.ride_index, "mirrored": self.mirrored}),
         }
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -451,7 +483,12 @@ class PTWRollEnv(gym.Env):
         x0 = options.pop("x0", None)
         if options:
             raise EnvConfigError(f"unknown reset option(s): {sorted(options)}; known: x0")
-        if self.randomization is not None:  # first draws of the episode (ptw_env.randomize)
+        if len(self.pool) > 1 or self.mirror:  # the ride: first draws of the episode
+            self.ride_index = int(self.np_random.integers(len(self.pool))) if len(self.pool) > 1 else 0
+            self.mirrored = bool(self.np_random.random() < 0.5) if self.mirror else False
+            self.profile = self.pool[self.ride_index][1 if self.mirrored else 0]
+            self.max_steps = len(self.profile.t) - 1
+        if self.randomization is not None:  # then the randomised values (ptw_env.randomize)
             self.randomized = self.randomization.sample(self.np_random)
             _, self._sensors = self.episode_models(self.randomized)
             if self.randomization.changes_plant:

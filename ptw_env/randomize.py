@@ -173,6 +173,17 @@ def _parse(key: str, spec: Any, bounds: tuple[float, float]) -> Distribution:
     return d
 
 
+def _read_json(path: str, what: str) -> Any:
+    """The JSON of ``path``; one :class:`RandomizationError` naming the file (and line, column) otherwise."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except OSError as exc:
+        raise RandomizationError(f"{what}: cannot read {path}: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise RandomizationError(f"{what}: {path} line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+
+
 class Randomization:
     """A parsed ``randomize=`` description (module docstring); immutable, picklable.
 
@@ -224,13 +235,7 @@ class Randomization:
         if spec is None or isinstance(spec, Randomization):
             return spec
         if isinstance(spec, str):
-            try:
-                with open(spec, encoding="utf-8") as f:
-                    data = json.load(f)
-            except OSError as exc:
-                raise RandomizationError(f"randomize: cannot read {spec}: {exc.strerror}") from None
-            except json.JSONDecodeError as exc:
-                raise RandomizationError(f"randomize: {spec} line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+            data = _read_json(spec, "randomize")
             if isinstance(data, Mapping) and "randomize" in data:
                 data = data["randomize"]
             return cls(data)
@@ -303,13 +308,7 @@ class Randomization:
         """The keyword arguments of :class:`ptw_env.env.PTWRollEnv` (and the vector env) that a digital-twin
         file (``ptw-assist twin``) describes: ``vehicle`` (preset name or vehicle file), ``effects`` (what is
         fixed) and ``randomize`` (what was measured, with its uncertainty)."""
-        try:
-            with open(path, encoding="utf-8") as f:
-                data = json.load(f)
-        except OSError as exc:
-            raise RandomizationError(f"twin: cannot read {path}: {exc.strerror}") from None
-        except json.JSONDecodeError as exc:
-            raise RandomizationError(f"twin: {path} line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+        data = _read_json(path, "twin")
         if not isinstance(data, Mapping) or "randomize" not in data:
             raise RandomizationError(f"twin: {path} has no 'randomize' mapping (not a ptw-assist twin file)")
         out: dict[str, Any] = {"randomize": Randomization(data["randomize"])}

@@ -116,6 +116,11 @@ class Profile:
     def __len__(self) -> int:
         return len(self.t)
 
+    def mirrored(self) -> "Profile":
+        """The same ride mirrored left/right: curvature, roll reference, ``Y`` and heading negated (the
+        model is odd in the lateral states, so a mirrored ride is the other half of a symmetric training set)."""
+        return dataclasses.replace(self, kappa=-self.kappa, phi_ref=-self.phi_ref, Y=-self.Y, psi=-self.psi)
+
     def check_vehicle(self, vehicle: Vehicle) -> None:
         """Raise :class:`ScenarioError` if the speed ever leaves ``vehicle``'s valid range ``[vmin, vmax]`` [m/s]
         (a scenario is defined without a vehicle; the vehicle that rides it decides which speeds are valid).

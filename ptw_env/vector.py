@@ -58,7 +58,7 @@ from .sensors import CHANNELS, NOISE_BLOCK, sense_into, sensor_terms
 
 @njit(cache=True, parallel=True)
 def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, dt, nsub,
-                vx_prof, ref_prof, fall, vmin, vmax, max_steps,
+                prof, vx_prof, ref_prof, fall, vmin, vmax, max_steps,
                 lim, tau_max, normalize, roll_scale, effort_w,
                 abuf, aprev, alpha, rate_step, alimit,
                 grip_limit, roll_limit, dtau_limit, road_mu,
@@ -67,8 +67,9 @@ def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, 
                 obs, rew, code, cost, util, tau_cmd, tau_app, clipped, nth):
     """One period of every env (module docstring): actuator, plant, end, reward and cost for the envs
     not ``resetting``, then the sensors and the observation of all, in ``nth`` chunks of envs (one per
-    thread, each with its own work arrays). Per env ``i``: state ``x[i]``,
-    sample ``k[i]``, plant ``pidx[i]`` of ``W`` etc. Everything else as :class:`PTWRollEnv.step`."""
+    thread, each with its own work arrays). Per env ``i``: state ``x[i]``, sample ``k[i]``, plant ``pidx[i]``
+    of ``W`` etc., ride ``prof[i]`` of the speed and reference profiles ``vx_prof``, ``ref_prof`` (rides x
+    samples) and of ``max_steps``. Everything else as :class:`PTWRollEnv.step`."""
     N = x.shape[0]
     chunk = (N + nth - 1) // nth
     nobs = obs.shape[1]
@@ -76,6 +77,8 @@ def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, 
         M, c, g, ks = scratch()
         for i in range(th * chunk, min(N, (th + 1) * chunk)):
             p = pidx[i]
+            pr = prof[i]
+            ms = max_steps[pr]
             if resetting[i]:
                 rew[i] = 0.0
                 code[i] = 0
@@ -98,13 +101,13 @@ def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, 
                 prev = aprev[i]
                 a = actuate(tau, abuf[i], kk, prev, alpha, rate_step, alimit)
                 aprev[i] = a
-                finite = advance(x[i], a, vx_prof[kk], 0.0, W[p], inv_sigma[p], fmax[p], bank[p], dt, nsub,
+                finite = advance(x[i], a, vx_prof[pr, kk], 0.0, W[p], inv_sigma[p], fmax[p], bank[p], dt, nsub,
                                  M, c, g, ks)
                 phi = x[i, 0]
                 k1 = kk + 1
-                nxt = k1 if k1 < max_steps else max_steps
-                cd = end_code(finite, phi, fall, vx_prof[nxt], vmin, vmax, k1, max_steps)
-                rew[i] = roll_reward(phi, ref_prof[nxt], tau / tau_max, roll_scale, effort_w)
+                nxt = k1 if k1 < ms else ms
+                cd = end_code(finite, phi, fall, vx_prof[pr, nxt], vmin, vmax, k1, ms)
+                rew[i] = roll_reward(phi, ref_prof[pr, nxt], tau / tau_max, roll_scale, effort_w)
                 if not finite:
                     for j in range(8):
                         if not np.isfinite(x[i, j]):
@@ -118,12 +121,12 @@ def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, 
                 tau_app[i] = a
                 clipped[i] = cl
             kk = k[i]
-            sense_into(x[i], vx_prof[kk], (x[i, 6] + x[i, 7]) / mass[p], gain[i], n_delay, frac, hist[i],
+            sense_into(x[i], vx_prof[pr, kk], (x[i, 6] + x[i, 7]) / mass[p], gain[i], n_delay, frac, hist[i],
                        offset[i], noise[i], counters[i], held[i], q, q_first, gps_step, true[i], meas[i])
             for j in range(5):
                 obs[i, j] = meas[i, j]
             obs[i, 5] = meas[i, 6]
-            obs[i, 6] = ref_prof[kk]
+            obs[i, 6] = ref_prof[pr, kk]
             if observe_roll:
                 obs[i, 7] = meas[i, 5]
             for j in range(nobs):
@@ -168,7 +171,19 @@ class PTWRollVectorEnv(VectorEnv):
         if max_episode_steps is not None:
             if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1:
                 raise EnvConfigError(f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}")
-        self.max_steps = min(tpl.max_steps, int(max_episode_steps or tpl.max_steps))
+        # the rides: row 2 j of the profile tables is ride j of the pool, row 2 j + 1 its mirror image,
+        # each padded with its last sample to the longest ride
+        profs = [pr for pair in tpl.pool for pr in pair]
+        T = max(len(pr.t) for pr in profs)
+        self._vx_prof = np.empty((len(profs), T))
+        self._ref_prof = np.empty((len(profs), T))
+        for j, pr in enumerate(profs):
+            m = len(pr.t)
+            self._vx_prof[j, :m], self._vx_prof[j, m:] = pr.vx, pr.vx[-1]
+            self._ref_prof[j, :m], self._ref_prof[j, m:] = pr.phi_ref, pr.phi_ref[-1]
+        limit = int(max_episode_steps) if max_episode_steps is not None else T
+        self._max_steps = np.array([min(len(pr.t) - 1, limit) for pr in profs], dtype=np.int64)
+        self._profiles = profs
         self.num_envs = n
         self.render_mode = tpl.render_mode
         self.render_env = int(render_env)
@@ -203,6 +218,7 @@ class PTWRollVectorEnv(VectorEnv):
         # per-env state
         self.state = np.zeros((n, 8))
         self._k = np.zeros(n, dtype=np.int64)
+        self._prof = np.zeros(n, dtype=np.int64)
         self._abuf = np.zeros((n, delay + 1))
         self._aprev = np.zeros(n)
         self._gain = np.full(n, self._base_gain)
@@ -239,6 +255,10 @@ class PTWRollVectorEnv(VectorEnv):
         """Sample index ``k`` of every env's episode (time ``k dt`` [s])."""
         return self._k.copy()
 
+    def profile_of(self, i: int):
+        """The ride (:class:`ptw_env.scenarios.Profile`, mirrored when drawn so) env ``i`` is on this episode."""
+        return self._profiles[self._prof[i]]
+
     def plant_of(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """``(W, inv_sigma, fmax, bank)`` of env ``i``'s plant this episode (:meth:`ptw_env.dynamics.Plant.flat`)."""
         p = self._pidx[i]
@@ -264,6 +284,11 @@ class PTWRollVectorEnv(VectorEnv):
         if seeds is not None:
             for i, sd in zip(idx, seeds):
                 self._rngs[i], self._seeds[i] = seeding.np_random(sd)
+        if len(tpl.pool) > 1 or tpl.mirror:  # the ride, first (the single env's order)
+            for i in idx:
+                rng = self._rngs[i]
+                j = int(rng.integers(len(tpl.pool))) if len(tpl.pool) > 1 else 0
+                self._prof[i] = 2 * j + (1 if tpl.mirror and rng.random() < 0.5 else 0)
         rnd = self.randomization
         if rnd is not None:
             samples = rnd.sample_many([self._rngs[i] for i in idx])
@@ -301,7 +326,8 @@ class PTWRollVectorEnv(VectorEnv):
         self._held[idx] = math.nan
         self._prev_done[idx] = False
         if self.render_env in idx:
-            self._pose[:] = (tpl.profile.X[0], tpl.profile.Y[0], tpl.profile.psi[0])
+            pr = self.profile_of(self.render_env)
+            self._pose[:] = (pr.X[0], pr.Y[0], pr.psi[0])
             self._trace = [(self._pose[0], self._pose[1], self.state[self.render_env, 0])]
 
     def _refill_noise(self) -> None:
@@ -318,8 +344,8 @@ class PTWRollVectorEnv(VectorEnv):
         vmin, vmax = tpl.vehicle.vmin, tpl.vehicle.vmax
         grip, roll_lim, dtau_lim, road_mu = tpl.cost_limits
         vector_step(actions, resetting, self.state, self._k, self._pidx, self._W, self._inv_sigma, self._fmax,
-                    self._bank, self._mass, self._fz, tpl.dt, self.nsub, tpl.profile.vx, tpl.profile.phi_ref,
-                    FALL_ANGLE, vmin, vmax, self.max_steps,
+                    self._bank, self._mass, self._fz, tpl.dt, self.nsub, self._prof, self._vx_prof, self._ref_prof,
+                    FALL_ANGLE, vmin, vmax, self._max_steps,
                     float(self.single_action_space.high[0]), tpl.tau_max, tpl.normalize_action, *tpl.reward_params,
                     self._abuf, self._aprev, self._alpha, self._rate_step, self._alimit,
                     grip, roll_lim, dtau_lim, road_mu,
@@ -333,8 +359,8 @@ class PTWRollVectorEnv(VectorEnv):
         k = self._k
         info: dict[str, Any] = {
             "t": k * self.dt,
-            "phi_ref": self.template.profile.phi_ref[k],
-            "vx": self.template.profile.vx[k],
+            "phi_ref": self._ref_prof[self._prof, k],
+            "vx": self._vx_prof[self._prof, k],
             "state": self.state.copy(),
             "tau": self._tau_app.copy(),
             "tau_command": self._tau_cmd.copy(),
@@ -342,6 +368,8 @@ class PTWRollVectorEnv(VectorEnv):
             "cost": self._cost.copy(),
             "grip_utilisation": self._util.copy(),
         }
+        if len(self.template.pool) > 1 or self.template.mirror:
+            info["ride"], info["mirrored"] = self._prof // 2, self._prof % 2 == 1
         for key in list(info):
             info["_" + key] = self._all
         if self._randomized:
@@ -418,7 +446,7 @@ class PTWRollVectorEnv(VectorEnv):
             r = self.render_env
             if not resetting[r]:
                 x = self.state[r]
-                advance_pose(self._pose, float(self.template.profile.vx[max(self._k[r] - 1, 0)]), x[2], x[3], self.dt)
+                advance_pose(self._pose, float(self._vx_prof[self._prof[r], max(self._k[r] - 1, 0)]), x[2], x[3], self.dt)
                 self._trace.append((self._pose[0], self._pose[1], x[0]))
         return self._obs.copy(), self._rew.copy(), terminated, truncated, self._info(done)
 
@@ -440,7 +468,7 @@ class _View:
     def __init__(self, venv: PTWRollVectorEnv) -> None:
         r = venv.render_env
         tpl = venv.template
-        self.profile, self.scenario, self.dt = tpl.profile, tpl.scenario, tpl.dt
+        self.profile, self.scenario, self.dt = venv.profile_of(r), tpl.scenario, tpl.dt
         self.state = venv.state[r]
         self.step_index = int(venv._k[r])
         self.pose = tuple(float(v) for v in venv._pose)

@@ -535,6 +535,8 @@ def _needs(cmd: str, log: Path, d: Path) -> list[str]:
         return [cmd, "--log", str(d / "sim.csv")]
     if cmd == "train-rl":
         return [cmd, "--out", str(d / "policy.zip"), "--steps", "64"]
+    if cmd == "twin":
+        return [cmd, str(log), "--out", str(d / "twin.json")]
     return [cmd]
 
 

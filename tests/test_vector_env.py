@@ -53,7 +53,7 @@ def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_sc
     return diff, ends, steps
 
 
-@pytest.mark.parametrize("case", ["default", "effects_actuator", "randomized"])
+@pytest.mark.parametrize("case", ["default", "effects_actuator", "randomized", "rides"])
 def test_env_i_equals_single_env_through_resets(case):
     """Same seeds, same actions: env i of the vector env and a single env agree to round-off, including
     across episode ends (falls under random torques) and autoresets."""
@@ -69,10 +69,32 @@ def test_env_i_equals_single_env_through_resets(case):
         kwargs.update(randomize={"tire_saturation:mu_peak": ("uniform", 0.4, 1.0), "payload:mass_kg": ("normal", 0, 15),
                                  "sensor_noise_scale": ("uniform", 0.5, 2.0), "gyro_bias:yaw_rate_bias": ("normal", 0, 0.01),
                                  "sensor_bias:ay": ("uniform", -0.1, 0.1)})
+    elif case == "rides":  # a ride drawn per episode from a pool, mirrored half of the time
+        kwargs.update(scenario_pool=["slalom", "double_lane_change"], mirror=True)
     diff, ends, _ = replay_against_single(kwargs, n=3, steps=600, seed=11, action_scale=scale)
     assert ends >= 3, "the replay must cross episode ends to test the autoreset"
     # compiled batched plants (randomised) differ from one-by-one ones only by round-off
     assert diff <= (1e-9 if case == "randomized" else 0.0)
+
+
+def test_a_mirrored_ride_is_the_mirror_image():
+    """The model is odd in the lateral states: on the mirrored ride, with the torques negated, every lateral
+    state is negated (noise-free sensors, no starting roll)."""
+    kw = dict(scenario_pool=["slalom"], mirror=True, sensors=ptw_env.sensors.SensorConfig.noiseless(), init_roll_deg=0.0)
+    runs = {}
+    for seed in range(20):
+        env = PTWRollEnv(**kw)
+        _, info = env.reset(seed=seed)
+        if info["mirrored"] in runs:
+            continue
+        sign = -1.0 if info["mirrored"] else 1.0
+        rng = np.random.default_rng(0)
+        xs = [env.step(np.array([sign * rng.normal(0, 5)], dtype=np.float32))[4]["state"] for _ in range(300)]
+        runs[info["mirrored"]] = np.array(xs)
+        if len(runs) == 2:
+            break
+    np.testing.assert_allclose(runs[True], -runs[False], rtol=0, atol=1e-12)
+    assert np.max(np.abs(runs[False][:, 0])) > 0.01  # the ride leans (0.023 rad)
 
 
 def test_make_vec_and_vector_conventions():

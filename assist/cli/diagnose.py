@@ -117,6 +117,52 @@ def _build_diagnose(p: argparse.ArgumentParser):
     return run
 
 
+#: ``--spread``: factor on the fitted standard deviations
+_spread = number(0.0, 1000.0, lo_open=True)
+
+
+@command(
+    "twin",
+    "a digital twin of a ride log: diagnose it and write what was measured (vehicle, causes, closure terms, "
+    "their uncertainty) as a randomize= description for the environments",
+    "ptw-assist twin ride.csv --out twin.json",
+)
+def _build_twin(p: argparse.ArgumentParser):
+    p.add_argument("log", metavar="LOG.csv", help="ride log (logs.md, optional JSON sidecar)")
+    add_vehicle_option(p, from_log=True)
+    p.add_argument("--out", required=True, metavar="TWIN.json",
+                   help="the twin (assist.diagnose.twin): use it with Randomization.env_kwargs('TWIN.json')")
+    p.add_argument("--spread", type=_spread, default=1.0, metavar="K",
+                   help="widen every fitted distribution K times its standard deviation (default 1)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+
+    def run(a: argparse.Namespace) -> int:
+        from assist.diagnose import diagnose
+        from assist.diagnose.twin import twin
+        from ptw_env.cli import write_json
+        from ptw_env.logs import read_log
+
+        check_outputs(a, "out")
+        ride = read_log(a.log)
+        v = vehicle_for_log(a, ride)
+        print(f"vehicle: {v.name}")
+        rep = diagnose(ride, progress=False if a.no_progress else None, vehicle=v)
+        print(rep.summary())
+        t = twin(rep, spread=a.spread)
+        for key, d in t["randomize"].items():
+            print(f"  {key} ~ {d}")
+        for e in t["effects"]:
+            print(f"  fixed: {e['cause']} {e['params']}")
+        for line in t["not_reproduced"] + t["notes"]:
+            print(f"  note: {line}")
+        write_json(a.out, t, a.overwrite)
+        print(f"twin written to {a.out}")
+        return 0
+
+    return run
+
+
 def _fleet(a: argparse.Namespace, logs: list[str], pairs) -> int:
     """Many logs: check them all, then diagnose them on the execution layer (module docstring)."""
     from assist.diagnose.diagnosis import replay_windows

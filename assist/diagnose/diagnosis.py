@@ -250,6 +250,9 @@ def diagnose(
     residual = breakdown(win, rv * replay.sigma, sig_v, roll)
     residual["ratio_to_noise"] = {c: round(float(x), 3) for c, x in zip(chans, ratio)}
 
+    vfit = fits[verdict.name]
+    causes_std = (replay.params.stds(verdict.causes, vfit.z, vfit.std(fitter.n_values))
+                  if verdict.name != "none" else None)
     hyp_json = hypotheses_json(selection.order(ranked), lambda r: replay.params.to_causes(r.causes, fits[r.name].z))
     rms_0, rms_hv = (np.sqrt(((rt[h] * replay.sigma) ** 2).sum(axis=(0, 1)) / counts.sum(axis=0)) for h in (0, hv))
     sizes = [len(f.hypothesis.causes) for f in fits.values()]
@@ -264,6 +267,7 @@ def diagnose(
         log=name,
         explained=explained,
         causes=replay.params.to_causes(verdict.causes, fits[verdict.name].z),
+        causes_std=causes_std,
         gain=verdict.gain,
         gain_channels=verdict.gain_channels,
         nominal_rmse={c: float(v) for c, v in zip(chans, rms_0)},

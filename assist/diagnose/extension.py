@@ -184,15 +184,7 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
     if not chosen:
         return None
     # the extended model's coefficients with their uncertainty (weighted-residual Jacobian)
-    last = fits[chosen[-1]]
-    J = np.asarray(last.extra.get("jac"), dtype=float)
-    n = max(fitter.n_values - len(chosen), 1)
-    s2 = max(last.cost / n, 1.0)
-    try:
-        cov = np.linalg.inv(J.T @ J) * s2
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    except np.linalg.LinAlgError:
-        std = np.full(len(chosen), math.nan)
+    std = fits[chosen[-1]].std(fitter.n_values)
     S_ext = float(_held_out(fitter, z[None], test_w, score_steps, x_cur)[0].sum())
     terms = []
     for j, c in enumerate(chosen):

@@ -32,6 +32,8 @@ Search (all through the batched simulator, never a Python loop over vehicles):
 
 from __future__ import annotations
 
+import math
+
 import itertools
 from dataclasses import dataclass, field
 
@@ -125,6 +127,23 @@ class Fit:
     nfev: int = 0
     message: str = ""
     extra: dict = field(default_factory=dict)
+
+    def std(self, n_values: int) -> np.ndarray:
+        """Standard deviations of the fitted parameters (internal coordinates, the hypothesis's order) from
+        the weighted-residual Jacobian ``J`` of the refinement: ``sqrt(diag((J^T J)^-1) s^2)``, ``s^2`` the
+        residual variance per value ``cost / (n_values - k)`` (at least 1: the residuals are weighted by
+        the noise, so a model that fits to within the noise has 1). NaN where ``J^T J`` is singular or no
+        Jacobian was kept (Bard, Nonlinear Parameter Estimation, 1974, sec. 7-5)."""
+        J = np.asarray(self.extra.get("jac", np.zeros((0, 0))), dtype=float)
+        k = J.shape[1] if J.ndim == 2 else 0
+        if k == 0:
+            return np.full(self.hypothesis.k, math.nan)
+        s2 = max(self.cost / max(n_values - k, 1), 1.0)
+        try:
+            cov = np.linalg.inv(J.T @ J) * s2
+        except np.linalg.LinAlgError:
+            return np.full(k, math.nan)
+        return np.sqrt(np.clip(np.diag(cov), 0.0, None))
 
 
 class HypothesisFitter:

@@ -69,6 +69,15 @@ class ParamSpec:
             v = np.where(z > 0.0, 1.0 / np.maximum(z, 1e-300), math.inf)
         return float(v) if v.ndim == 0 else v
 
+    def value_std(self, z: float, std_z: float) -> float:
+        """Standard deviation of the effects.md value from that of the internal coordinate (first order:
+        ``std_z / z^2`` for an inverse coordinate); NaN when it is not finite."""
+        if not math.isfinite(std_z):
+            return math.nan
+        if not self.inverse:
+            return float(std_z)
+        return float(std_z / z**2) if z > 0 else math.nan
+
     def report(self, z: float) -> float:
         """The value as written in the report, rounded to :attr:`digits` decimals (``inf`` kept)."""
         v = float(self.value(z))
@@ -230,6 +239,21 @@ class ParamSet:
             return [{"cause": "none", "params": {}}]
         return [{"cause": c, "params": {self.params[i].name: self.params[i].report(z[i]) for i in CAUSES[c]}}
                 for c in causes]
+
+
+    def stds(self, causes: tuple[str, ...], z: np.ndarray, std_z: np.ndarray) -> dict[str, dict[str, float | None]]:
+        """``{cause: {param: std}}`` in effects.md units (3 significant digits; ``None`` where unknown) for a
+        hypothesis at ``z`` whose parameters (in the hypothesis's order) have internal standard deviations
+        ``std_z`` (:meth:`assist.diagnose.hypotheses.Fit.std`)."""
+        out: dict[str, dict[str, float | None]] = {}
+        j = 0
+        for c in causes:
+            out[c] = {}
+            for i in CAUSES[c]:
+                v = self.params[i].value_std(float(z[i]), float(std_z[j]) if j < len(std_z) else math.nan)
+                out[c][self.params[i].name] = float(f"{v:.3g}") if math.isfinite(v) else None
+                j += 1
+        return out
 
 
 def param_set(vehicle: Vehicle) -> ParamSet:

@@ -8,6 +8,7 @@ JSON structure (diagnose.md; keys beyond the contract are marked *extra*)::
                   "where": {...}},                   # extra: where the nominal residual lives
       "verdict": {"explained": bool,
                   "causes": [{"cause": ..., "params": {...}}],
+                  "std": {cause: {param: ...}},      # extra: the fitted values' standard deviations
                   "gain": ...,                       # held-out, 0 = nominal, 1 = perfect
                   "rmse": {channel: ...},
                   "gain_channels": {channel: ...},   # extra: the gain per channel
@@ -127,6 +128,9 @@ class DiagnosisReport:
     sim_seconds: float = math.nan
     sim_steps: int = 0
     plot_data: dict[str, Any] = field(default_factory=dict, repr=False)
+    #: standard deviation of each fitted parameter of :attr:`causes`, ``{cause: {param: std}}`` (effects.md units,
+    #: from the fit's weighted-residual Jacobian, :meth:`assist.diagnose.hypotheses.Fit.std`); None for ``none``
+    causes_std: dict | None = None
     extension: dict | None = None  #: diagnose.md verdict.extension (closure terms and their gain), or None
     extended: bool = False  #: the extended model explains the log to within the noise
     #: ``{"between": [causes A, causes B], "separation_margin": m}`` when the held-out data do not
@@ -158,6 +162,7 @@ class DiagnosisReport:
         verdict: dict[str, Any] = {
             "explained": bool(self.explained),
             "causes": self.causes,
+            **({} if self.causes_std is None else {"std": self.causes_std}),
             "gain": round(float(self.gain), 4),
             "rmse": {c: sig(v) for c, v in self.verdict_rmse.items()},
             "gain_channels": {c: round(float(v), 4) for c, v in self.gain_channels.items()},
