@@ -39,8 +39,10 @@ def _build_train_rl(p: argparse.ArgumentParser):
                    help="cruise speeds of the training rides [km/h] (default: the vehicle's design range; "
                         "the shipped policy: 30,90)")
     p.add_argument("--n-envs", type=_int_at_least(1, 4096), default=4, metavar="N", help="environment copies (default 4)")
-    p.add_argument("--vec", choices=("dummy", "subproc"), default="dummy",
-                   help="copies in this process or one process each (default dummy: faster here, scripts/bench_rl.py)")
+    p.add_argument("--vec", choices=("dummy", "subproc", "native"), default="dummy",
+                   help="copies in this process, one process each, or native: the compiled vector env with a pool "
+                        "of 64 rides, mirrored rides and randomised vehicles (assist.rl.training.native_training_env; "
+                        "use many --n-envs, e.g. 256) (default dummy)")
     p.add_argument("--threads", type=_int_at_least(1, 1024), default=1, metavar="N",
                    help="torch threads (default 1: faster on 2 cores, scripts/bench_rl.py)")
     p.add_argument("--checkpoint-every", type=_int_at_least(0), default=500_000, metavar="N",

@@ -137,28 +137,37 @@ class ObsEncoder:
 
     def _scaled(self, obs: np.ndarray) -> np.ndarray:
         obs = np.asarray(obs, dtype=np.float32)
-        if obs.shape != (7,):
+        if obs.shape[-1:] != (7,):
             raise PolicyError(f"expected the 7-channel observation {OBS_CHANNELS}, got shape {obs.shape}")
         z = (obs - self._center) * self._inv_scale
         np.minimum(z, self.clip, out=z)
         np.maximum(z, -self.clip, out=z)
         return z
 
+    def reset_into(self, obs: np.ndarray, buf: np.ndarray) -> None:
+        """Start episodes at observations ``obs`` (N, 7): their encoded vectors into ``buf`` (N, :attr:`dim`)."""
+        z = self._scaled(obs)
+        buf[:, : 7 * self.frames] = np.tile(z, (1, self.frames))
+        if self.prev_action:
+            buf[:, -1] = 0.0
+
+    def step_into(self, obs: np.ndarray, action: np.ndarray, buf: np.ndarray) -> None:
+        """Push observations ``obs`` (N, 7) that followed normalised actions ``action`` (N,) into ``buf``
+        (N, :attr:`dim`): the history shifts by one frame, the newest first."""
+        n = 7 * self.frames
+        buf[:, 7:n] = buf[:, : n - 7]
+        buf[:, :7] = self._scaled(obs)
+        if self.prev_action:
+            buf[:, -1] = np.clip(np.asarray(action, dtype=np.float32), -1.0, 1.0)
+
     def reset(self, obs: np.ndarray) -> np.ndarray:
         """Start an episode at observation ``obs``; returns the encoded vector."""
-        z = self._scaled(obs)
-        self._buf[: 7 * self.frames] = np.tile(z, self.frames)
-        if self.prev_action:
-            self._buf[-1] = 0.0
+        self.reset_into(np.asarray(obs)[None], self._buf[None])
         return self._buf.copy()
 
     def step(self, obs: np.ndarray, action: float) -> np.ndarray:
         """Push observation ``obs`` that followed normalised ``action``; returns the encoded vector."""
-        n = 7 * self.frames
-        self._buf[7:n] = self._buf[: n - 7]
-        self._buf[:7] = self._scaled(obs)
-        if self.prev_action:
-            self._buf[-1] = min(max(float(action), -1.0), 1.0)
+        self.step_into(np.asarray(obs)[None], np.array([float(action)]), self._buf[None])
         return self._buf.copy()
 
 

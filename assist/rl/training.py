@@ -272,6 +272,102 @@ def _vec_env(n_envs: int, seed: int, vec: str, env_kwargs: dict[str, Any]):
                         vec_env_kwargs=kw)
 
 
+#: Vehicle and road randomisation of native training (``vec="native"``), per episode: tire stiffness
+#: +-20 %, tire peak friction 0.6-1.1 (dry to damp), payload 0-20 % of the vehicle's mass, road bank
+#: 0 +- 0.02 rad (clipped to 0.05); derived from the vehicle, nothing of one vehicle.
+def training_randomization(vehicle: Vehicle) -> dict[str, Any]:
+    """The ``randomize=`` of native training for ``vehicle`` (see the comment above)."""
+    return {"tire_stiffness:scale": ("uniform", 0.8, 1.2), "tire_saturation:mu_peak": ("uniform", 0.6, 1.1),
+            "payload:mass_kg": ("uniform", 0.0, round(0.2 * float(vehicle.mass), 3)),
+            "road_bank:bank_rad": ("normal", 0.0, 0.02, -0.05, 0.05)}
+
+
+def native_training_env(n_envs: int, seed: int, distribution: TrainingDistribution, encoder: ObsEncoder,
+                        tau_max: float, vehicle: Vehicle, smooth_weight: float = SMOOTH_WEIGHT, pool: int = 64,
+                        randomize_vehicle: bool = True):
+    """The SB3 ``VecEnv`` of native training: :class:`ptw_env.vector.PTWRollVectorEnv` with ``n_envs`` envs
+    (seeded ``seed + i``), a pool of ``pool`` rides drawn once from ``distribution`` (with
+    ``numpy.random.default_rng(seed)``), each episode one of them, mirrored with probability 1/2; the
+    sensor noise drawn per episode as a factor in ``[lo/hi, 1]`` of ``hi`` percent of each channel's range
+    (``distribution.noise_pct = (lo, hi)``; the GPS speed noise scales with it, unlike :class:`TrainingEnv`);
+    :func:`training_randomization` when ``randomize_vehicle``; seen through ``encoder`` with the
+    action-change penalty ``smooth_weight`` (:class:`EncodedVecEnv`)."""
+    from ptw_env.vector import PTWRollVectorEnv
+
+    from assist.rl.vecenv import SB3VecEnv
+
+    rng = np.random.default_rng(seed)
+    rides = []
+    for _ in range(int(pool)):
+        ep = distribution.draw(rng)
+        sc = ep["scenario"]
+        rides.append(replace(sc, seed=ep["scenario_seed"]) if ep["scenario_seed"] is not None else sc)
+    lo, hi = distribution.noise_pct
+    randomize: dict[str, Any] = {"sensor_noise_scale": ("uniform", lo / hi, 1.0)} if hi > 0 else {}
+    if randomize_vehicle:
+        randomize.update(training_randomization(vehicle))
+    venv = PTWRollVectorEnv(num_envs=int(n_envs), scenario_pool=rides, mirror=distribution.mirror, noise_pct=hi,
+                            normalize_action=True, tau_max=tau_max, vehicle=vehicle, randomize=randomize or None)
+    sb3 = SB3VecEnv(venv)
+    sb3.seed(int(seed))
+    return EncodedVecEnv(sb3, encoder, smooth_weight)
+
+
+def _encoded_vec_env_class():
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    class EncodedVecEnvImpl(VecEnvWrapper):
+        """An SB3 ``VecEnv`` seen through :class:`ObsEncoder` (the policy's input, batched) with the training-only
+        penalty ``smooth_weight (a_k - a_{k-1})^2`` on the action change, as :class:`TrainingEnv` does for one
+        env; an ended episode's ``terminal_observation`` is encoded too (SB3 bootstraps truncated episodes
+        from it)."""
+
+        def __init__(self, venv, encoder: ObsEncoder, smooth_weight: float = SMOOTH_WEIGHT) -> None:
+            c = encoder.clip
+            super().__init__(venv, observation_space=spaces.Box(-c, c, shape=(encoder.dim,), dtype=np.float32),
+                             action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
+            self.encoder = encoder
+            self.smooth_weight = float(smooth_weight)
+            self._buf = np.zeros((venv.num_envs, encoder.dim), dtype=np.float32)
+            self._a_prev = np.zeros(venv.num_envs)
+            self._a = np.zeros(venv.num_envs)
+
+        def reset(self):
+            obs = self.venv.reset()
+            self.encoder.reset_into(obs, self._buf)
+            self._a_prev[:] = 0.0
+            return self._buf.copy()
+
+        def step_async(self, actions: np.ndarray) -> None:
+            self._a = np.clip(np.asarray(actions, dtype=np.float64).reshape(self.num_envs), -1.0, 1.0)
+            self.venv.step_async(self._a.reshape(-1, 1).astype(np.float32))
+
+        def step_wait(self):
+            obs, rew, done, infos = self.venv.step_wait()
+            shaped = rew - self.smooth_weight * (self._a - self._a_prev) ** 2
+            if done.any():
+                idx = np.flatnonzero(done)
+                last = self._buf[idx].copy()
+                self.encoder.step_into(np.stack([infos[i]["terminal_observation"] for i in idx]), self._a[idx], last)
+                for j, i in enumerate(idx):
+                    infos[i]["terminal_observation"] = last[j]
+            self.encoder.step_into(obs, self._a, self._buf)
+            if done.any():  # the new episode's first observation (a masked row is a copy: write it back)
+                fresh = self._buf[done]
+                self.encoder.reset_into(obs[done], fresh)
+                self._buf[done] = fresh
+            self._a_prev[:] = np.where(done, 0.0, self._a)
+            return self._buf.copy(), shaped.astype(np.float32), done, infos
+
+    return EncodedVecEnvImpl
+
+
+def EncodedVecEnv(venv, encoder: ObsEncoder, smooth_weight: float = SMOOTH_WEIGHT):
+    """:class:`EncodedVecEnvImpl` over ``venv`` (an SB3 ``VecEnv``; needs the ``[rl]`` extra)."""
+    require_sb3()
+    return _encoded_vec_env_class()(venv, encoder, smooth_weight)
+
+
 def mean_episode_reward(act: Callable[[np.ndarray], float] | str, episodes: int = 4, seed: int = 12345,
                         env_kwargs: Mapping[str, Any] | None = None, max_steps: int | None = None) -> float:
     """Mean return of ``episodes`` episodes of :class:`TrainingEnv` under a policy.
@@ -311,6 +407,14 @@ def mean_episode_reward(act: Callable[[np.ndarray], float] | str, episodes: int 
     return total / episodes
 
 
+#: Samples per PPO rollout with ``vec="native"`` (``n_steps = NATIVE_ROLLOUT // n_envs``), taken in minibatches of 2048:
+#: with hundreds of envs, the default 1024 steps per env would update the policy a hundred times less often.
+NATIVE_ROLLOUT = 16384
+#: How the training envs are stepped: ``dummy`` (SB3 DummyVecEnv of :class:`TrainingEnv`), ``subproc`` (one process
+#: each) or ``native`` (:func:`native_training_env`: the compiled vector env, a ride pool and randomised vehicles).
+VECS = ("dummy", "subproc", "native")
+
+
 def _check_train_args(algo: str, steps: int, seed: int, n_envs: int, vec: str, threads: int) -> None:
     if algo not in ALGOS:
         raise PolicyError(f"unknown algorithm {algo!r}; known: {', '.join(ALGOS)}")
@@ -319,8 +423,8 @@ def _check_train_args(algo: str, steps: int, seed: int, n_envs: int, vec: str, t
             raise PolicyError(f"{name} must be a positive integer, got {v!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise PolicyError(f"seed must be an integer >= 0, got {seed!r}")
-    if vec not in ("dummy", "subproc"):
-        raise PolicyError(f"vec must be 'dummy' or 'subproc', got {vec!r}")
+    if vec not in VECS:
+        raise PolicyError(f"vec must be one of {', '.join(VECS)}, got {vec!r}")
 
 
 def versions() -> dict[str, str]:
@@ -348,8 +452,14 @@ def build_model(algo: str = "ppo", seed: int = 0, n_envs: int = 4, vec: str = "d
     probe = TrainingEnv(**env_kwargs)  # resolves the vehicle's speeds, encoder and torque once, checked
     encoder = probe.encoder
     env_kwargs.update(encoder=encoder.config(), distribution=probe.distribution, tau_max=probe.tau_max)
-    venv = _vec_env(n_envs, seed, vec, env_kwargs)
+    if vec == "native":
+        venv = native_training_env(n_envs, seed, probe.distribution, encoder, probe.tau_max, probe.vehicle,
+                                   probe.smooth_weight)
+    else:
+        venv = _vec_env(n_envs, seed, vec, env_kwargs)
     params = dict(PPO_DEFAULTS if algo == "ppo" else SAC_DEFAULTS)
+    if vec == "native" and algo == "ppo":  # many envs: the same 16384-sample rollout, minibatches of 2048
+        params.update(n_steps=max(8, NATIVE_ROLLOUT // n_envs), batch_size=2048)
     params.update(hyper or {})
     args = dict(params)
     lr_end = args.pop("lr_end", None)
@@ -448,6 +558,8 @@ def train(
         "distribution": env_kwargs["distribution"].describe()
         if not env_kwargs.get("fixed") else {"fixed": dict(env_kwargs["fixed"])},
         "smooth_weight": float(env_kwargs.get("smooth_weight", SMOOTH_WEIGHT)),
+        **({"native": {"pool": 64, "mirror": True, "randomize": training_randomization(env_kwargs.get("vehicle") or REFERENCE_SCOOTER)}}
+           if vec == "native" else {}),
         "hyper": json.loads(json.dumps(params, default=str)), "versions": versions(), "command": command,
     }
     model.ptw_rl = meta  # saved with the model (BaseAlgorithm.save stores the instance's attributes)
@@ -476,5 +588,5 @@ def train(
 
 
 
-__all__ = ["SMOOTH_WEIGHT", "PPO_DEFAULTS", "SAC_DEFAULTS", "TrainResult", "TrainingDistribution", "TrainingEnv",
+__all__ = ["SMOOTH_WEIGHT", "VECS", "EncodedVecEnv", "native_training_env", "training_randomization", "PPO_DEFAULTS", "SAC_DEFAULTS", "TrainResult", "TrainingDistribution", "TrainingEnv",
            "build_model", "mean_episode_reward", "train", "versions"]
