@@ -19,7 +19,8 @@ A description maps a *key* to a *distribution*. Keys:
   (:data:`ptw_env.sensors.CHANNELS`).
 
 Distributions: a number (fixed), ``("uniform", low, high)``, ``("loguniform", low, high)``,
-``("normal", mean, std)`` or ``("normal", mean, std, low, high)`` (clipped to ``[low, high]``), or
+``("normal", mean, std)`` or ``("normal", mean, std, low, high)`` (clipped to ``[low, high]``; ``None`` for
+the physical bound), or
 ``("choice", [v1, v2, ...])``; also as JSON lists or ``{"dist": "uniform", "low": ..., "high": ...}``.
 An effect parameter's draws must lie in its physical range of effects.md: a uniform range outside it is
 an error, a normal's tails are clipped to it (stated in :attr:`Randomization.describe`).
@@ -104,9 +105,11 @@ class Distribution:
             return self.a
         if self.kind == "choice":
             return ["choice", list(self.values)]
-        if self.kind == "normal":
+        if self.kind == "normal":  # an infinite bound is written null (strict JSON) and read as the physical one
             out: list[Any] = ["normal", self.a, self.b]
-            return out + ([self.low, self.high] if math.isfinite(self.low) or math.isfinite(self.high) else [])
+            if math.isfinite(self.low) or math.isfinite(self.high):
+                out += [v if math.isfinite(v) else None for v in (self.low, self.high)]
+            return out
         return [self.kind, self.a, self.b]
 
 
@@ -156,7 +159,9 @@ def _parse(key: str, spec: Any, bounds: tuple[float, float]) -> Distribution:
         elif kind == "normal":
             if len(args) not in (2, 4):
                 raise RandomizationError(f"randomize[{key!r}]: normal takes (mean, std) or (mean, std, low, high), got {spec!r}")
-            vals = [_number(key, n, v) for n, v in zip(("mean", "std", "low", "high"), args)]
+            default = (None, None, lo_b, hi_b)
+            vals = [default[j] if (j >= 2 and v is None) else _number(key, n, v)
+                    for j, (n, v) in enumerate(zip(("mean", "std", "low", "high"), args))]
             if vals[1] < 0:
                 raise RandomizationError(f"randomize[{key!r}]: normal std must be >= 0, got {vals[1]}")
             lo, hi = (vals[2], vals[3]) if len(vals) == 4 else (lo_b, hi_b)

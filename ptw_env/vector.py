@@ -57,7 +57,7 @@ from .sensors import CHANNELS, NOISE_BLOCK, sense_into, sensor_terms
 
 
 @njit(cache=True, parallel=True)
-def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, dt, nsub,
+def vector_step(actions, mode, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, dt, nsub,
                 prof, vx_prof, ref_prof, fall, vmin, vmax, max_steps,
                 lim, tau_max, normalize, roll_scale, effort_w,
                 abuf, aprev, alpha, rate_step, alimit,
@@ -65,8 +65,9 @@ def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, 
                 gain, n_delay, frac, hist, offset, noise, counters, held, q, q_first, gps_step, true, meas,
                 obs_hi, observe_roll,
                 obs, rew, code, cost, util, tau_cmd, tau_app, clipped, nth):
-    """One period of every env (module docstring): actuator, plant, end, reward and cost for the envs
-    not ``resetting``, then the sensors and the observation of all, in ``nth`` chunks of envs (one per
+    """One period of the envs (module docstring), by ``mode[i]``: 2 steps env ``i`` (actuator, plant, end,
+    reward and cost), 1 starts its episode (nothing moves), 0 leaves it untouched (a partial reset of
+    others); every env of mode 1 or 2 is then observed (sensors, observation clipped to ``obs_hi``), in ``nth`` chunks of envs (one per
     thread, each with its own work arrays). Per env ``i``: state ``x[i]``, sample ``k[i]``, plant ``pidx[i]``
     of ``W`` etc., ride ``prof[i]`` of the speed and reference profiles ``vx_prof``, ``ref_prof`` (rides x
     samples) and of ``max_steps``. Everything else as :class:`PTWRollEnv.step`."""
@@ -79,7 +80,9 @@ def vector_step(actions, resetting, x, k, pidx, W, inv_sigma, fmax, bank, mass, 
             p = pidx[i]
             pr = prof[i]
             ms = max_steps[pr]
-            if resetting[i]:
+            if mode[i] == 0:
+                continue
+            if mode[i] == 1:
                 rew[i] = 0.0
                 code[i] = 0
                 cost[i] = 0.0
@@ -255,7 +258,7 @@ class PTWRollVectorEnv(VectorEnv):
         """Sample index ``k`` of every env's episode (time ``k dt`` [s])."""
         return self._k.copy()
 
-    def profile_of(self, i: int):
+    def profile_of(self, i: int) -> Any:
         """The ride (:class:`ptw_env.scenarios.Profile`, mirrored when drawn so) env ``i`` is on this episode."""
         return self._profiles[self._prof[i]]
 
@@ -330,20 +333,25 @@ class PTWRollVectorEnv(VectorEnv):
             self._pose[:] = (pr.X[0], pr.Y[0], pr.psi[0])
             self._trace = [(self._pose[0], self._pose[1], self.state[self.render_env, 0])]
 
-    def _refill_noise(self) -> None:
+    def _refill_noise(self, active: np.ndarray) -> None:
+        """New noise blocks for the ``active`` envs that used theirs up, from each env's generator (an env
+        whose noise is all zero draws nothing, as :class:`~ptw_env.sensors.SensorModel` does)."""
         B = self._noise.shape[1]
         if B == 0:
             return
-        for i in np.flatnonzero(self._counters[:, 2] >= B):
-            self._noise[i] = self._rngs[i].standard_normal((B, len(CHANNELS))) * self._std[i]
+        for i in np.flatnonzero(active & (self._counters[:, 2] >= B)):
+            if np.any(self._std[i] > 0.0):
+                self._noise[i] = self._rngs[i].standard_normal((B, len(CHANNELS))) * self._std[i]
+            else:
+                self._noise[i] = 0.0
             self._counters[i, 2] = 0
 
-    def _run(self, actions: np.ndarray, resetting: np.ndarray) -> None:
+    def _run(self, actions: np.ndarray, mode: np.ndarray) -> None:
         tpl = self.template
-        self._refill_noise()
+        self._refill_noise(mode > 0)
         vmin, vmax = tpl.vehicle.vmin, tpl.vehicle.vmax
         grip, roll_lim, dtau_lim, road_mu = tpl.cost_limits
-        vector_step(actions, resetting, self.state, self._k, self._pidx, self._W, self._inv_sigma, self._fmax,
+        vector_step(actions, mode, self.state, self._k, self._pidx, self._W, self._inv_sigma, self._fmax,
                     self._bank, self._mass, self._fz, tpl.dt, self.nsub, self._prof, self._vx_prof, self._ref_prof,
                     FALL_ANGLE, vmin, vmax, self._max_steps,
                     float(self.single_action_space.high[0]), tpl.tau_max, tpl.normalize_action, *tpl.reward_params,
@@ -383,7 +391,8 @@ class PTWRollVectorEnv(VectorEnv):
             info["_reason"] = done.copy()
         return info
 
-    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
+              options: dict | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every env (or those of ``options["reset_mask"]``); ``options["x0"]``: one starting state (8,)."""
         n = self.num_envs
         options = dict(options or {})
@@ -416,18 +425,22 @@ class PTWRollVectorEnv(VectorEnv):
         # a seed (or the first reset) makes new generators; otherwise each env's generator goes on
         fresh = [seeds[i] for i in idx] if (seed is not None or first) else None
         self._reset_envs(idx, fresh, x0)
-        resetting = np.zeros(n, dtype=np.bool_)
-        resetting[idx] = True
-        self._run(np.zeros(n), resetting)
+        mode = np.zeros(n, dtype=np.int64)  # only the reset envs: the others stay where they are
+        mode[idx] = 1
+        self._run(np.zeros(n), mode)
         self._ready = True
         return self._obs.copy(), self._info(None)
 
-    def step(self, actions):
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One period of every env (``actions``: (N, 1) torques, or normalised with ``normalize_action``); an env
+        whose episode ended on the previous step is reset instead (NEXT_STEP autoreset, its action ignored).
+        Returns ``(obs, reward, terminated, truncated, info)``, batched (module docstring)."""
         if not self._ready:
             raise EnvConfigError("step() called before reset()")
-        a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
-        if a.shape[1] != 1:
-            raise EnvConfigError(f"actions must have shape ({self.num_envs}, 1), got {np.shape(actions)}")
+        a = np.asarray(actions, dtype=np.float64)
+        if a.size != self.num_envs:
+            raise EnvConfigError(f"actions must have shape ({self.num_envs}, 1) (one torque per env), got {np.shape(actions)}")
+        a = a.reshape(self.num_envs, 1)
         a = a[:, 0]
         if not np.all(np.isfinite(a)):
             bad = int(np.flatnonzero(~np.isfinite(a))[0])
@@ -436,7 +449,7 @@ class PTWRollVectorEnv(VectorEnv):
         idx = np.flatnonzero(resetting)
         if len(idx):
             self._reset_envs(idx, None, None)
-        self._run(np.ascontiguousarray(a), resetting)
+        self._run(np.ascontiguousarray(a), np.where(resetting, 1, 2).astype(np.int64))
         code = self._code
         terminated = (code > 0) & (code < SCENARIO_END)
         truncated = code == SCENARIO_END
@@ -450,7 +463,7 @@ class PTWRollVectorEnv(VectorEnv):
                 self._trace.append((self._pose[0], self._pose[1], x[0]))
         return self._obs.copy(), self._rew.copy(), terminated, truncated, self._info(done)
 
-    def render(self):
+    def render(self) -> np.ndarray | None:
         """The frame of env :attr:`render_env` (``rgb_array``), drawn as the single env draws."""
         if self.render_mode is None:
             return None

@@ -56,15 +56,23 @@ def main() -> None:
                         print(f"{cause}:{p:26s} {seed:4d} {truth:9.4g}  not in the twin: {sorted(tw['randomize'])}")
                         continue
                     _, c, sd = d
+                    if not sd > 0:  # a std that rounds to 0: no z to give
+                        rows.append({"effect": f"{cause}:{p}", "seed": seed, "truth": truth, "centre": c, "std": sd,
+                                     "found": True, "z": None})
+                        print(f"{cause + ':' + p:38s} {seed:4d} {truth:9.4g} {c:12.5g} {sd:10.3g}  (std 0)")
+                        continue
                     z = (truth - c) / sd
                     rows.append({"effect": f"{cause}:{p}", "seed": seed, "truth": truth, "centre": c, "std": sd,
                                  "z": z, "seconds": time.perf_counter() - t0, "found": True})
                     print(f"{cause + ':' + p:38s} {seed:4d} {truth:9.4g} {c:12.5g} {sd:10.3g} {z:6.2f}")
-    zs = [abs(r["z"]) for r in rows if r["found"]]
+    zs = [abs(r["z"]) for r in rows if r["found"] and r.get("z") is not None]
     within = sum(z <= 2 for z in zs)
-    print(f"|z| <= 2 in {within} of {len(zs)} parameters (a calibrated std: about 95 %); largest |z| {max(zs):.2f}")
+    if zs:
+        print(f"|z| <= 2 in {within} of {len(zs)} parameters (a calibrated std: about 95 %); largest |z| {max(zs):.2f}")
+    else:
+        print("no parameter of the hidden effects was found in a twin")
     if out is not None:
-        out.write_text(json.dumps({"rows": rows, "within_2_std": within, "n": len(zs)}, indent=2) + "\n")
+        out.write_text(json.dumps({"rows": rows, "within_2_std": within, "n": len(zs)}, indent=2, allow_nan=False) + "\n")
 
 
 if __name__ == "__main__":

@@ -62,6 +62,7 @@ def test_a_native_training_run_gives_a_policy_the_evaluation_runs(tmp_path):
     res = train("ppo", 4096, seed=0, out=tmp_path / "p.zip", n_envs=64, vec="native", progress=False,
                 checkpoint_every=None, eval_episodes=1)
     assert res.steps >= 4096 and res.meta["native"]["pool"] == 64 and res.meta["hyper"]["n_steps"] == 256
+    assert set(res.meta["native"]["randomize"]) >= {"sensor_noise_scale", "tire_saturation:mu_peak"}
     ep = run_episode("rl", "double_lane_change", speed_kmh=50, noise_pct=5.0, seed=0,
                      controller_options={"policy": str(res.path)})
     assert len(ep.t) > 10

@@ -131,8 +131,12 @@ def test_next_step_autoreset_and_reset_mask():
     assert info["t"][0] == 0.0 and np.all(info["state"][0, 1:] == 0.0)  # env 0 restarted upright
     assert venv.step_index[1] == k1 + 1  # env 1 went on
     mask = np.array([False, True])
-    venv.reset(options={"reset_mask": mask})
-    assert venv.step_index.tolist() == [1, 0]
+    before = venv.state[0].copy()
+    obs_before = obs[0].copy()
+    obs, _ = venv.reset(options={"reset_mask": mask})
+    assert venv.step_index.tolist() == [0, 0]  # env 0 (restarted on the step before) has not moved
+    np.testing.assert_array_equal(venv.state[0], before)  # env 0 untouched by env 1's reset
+    np.testing.assert_array_equal(obs[0], obs_before)
     with pytest.raises(EnvConfigError, match="reset_mask"):
         venv.reset(options={"reset_mask": np.array([1, 0])})
 
@@ -254,8 +258,40 @@ def test_randomization_errors_name_the_key():
         Randomization({"sensor_delay:delay_s": ("uniform", 0.0, 0.02)})
     with pytest.raises(EnvConfigError, match="loguniform needs low > 0"):
         PTWRollEnv(randomize={"payload:mass_kg": ("loguniform", 0, 5)})
-    r = Randomization({"payload:mass_kg": {"dist": "normal", "mean": 0, "std": 5}, "sensor_noise_scale": 2})
-    assert Randomization(r.to_json()) == r
+    r = Randomization({"payload:mass_kg": {"dist": "normal", "mean": 0, "std": 5}, "sensor_noise_scale": 2,
+                       "tire_saturation:mu_peak": ("normal", 0.8, 0.2), "road_bank:bank_rad": ("choice", [0.0, 0.01])})
+    import json
+
+    assert Randomization(json.loads(json.dumps(r.to_json(), allow_nan=False))) == r  # strict JSON round trip
+
+
+def test_sb3_adapter_keeps_each_env_equal_to_a_single_env():
+    """Through SB3VecEnv (same-step resets by reset_mask) env i still rides exactly as a single env reset at
+    each episode end: the other envs are not moved by a partial reset."""
+    pytest.importorskip("stable_baselines3")
+    from assist.rl.vecenv import SB3VecEnv
+
+    kw = {"scenario": "slalom", "speed_kmh": 40}
+    venv = SB3VecEnv(PTWRollVectorEnv(num_envs=3, **kw))
+    venv.seed(5)
+    obs = venv.reset()
+    singles = [PTWRollEnv(**kw) for _ in range(3)]
+    for i, e in enumerate(singles):
+        np.testing.assert_array_equal(e.reset(seed=5 + i)[0], obs[i])
+    rng = np.random.default_rng(1)
+    ends = 0
+    for _ in range(500):
+        a = (rng.uniform(0.0, 1.0, (3, 1)) * 60.0).astype(np.float32)
+        obs, rew, done, infos = venv.step(a)
+        for i, e in enumerate(singles):
+            o, r, te, tr, _ = e.step(a[i])
+            assert r == rew[i] and (te or tr) == done[i]
+            if done[i]:
+                ends += 1
+                np.testing.assert_array_equal(infos[i]["terminal_observation"], o)
+                o, _ = e.reset()
+            np.testing.assert_array_equal(o, obs[i])
+    assert ends >= 3
 
 
 def test_sb3_trains_on_the_vector_env():

@@ -24,8 +24,9 @@ The file (JSON)::
 Each fitted value is ``normal(value, spread * std)`` with ``std`` the fit's standard deviation
 (:meth:`assist.diagnose.hypotheses.Fit.std`, from the weighted-residual Jacobian; closure terms:
 diagnose.md's ``std``), clipped to effects.md's physical range. Values are the unrounded fit (the
-report rounds). ``sensor_delay`` (not randomisable per episode) and values without a finite
-uncertainty go to ``effects`` (fixed); sensor scale-factor closures, which the environments do not
+report rounds). ``sensor_delay`` (not randomisable per episode) and table values without a finite
+uncertainty go to ``effects`` (fixed), closure terms without one stay fixed numbers in ``randomize``
+(with a note); sensor scale-factor closures, which the environments do not
 model, to ``not_reproduced``. ``spread`` > 1 widens the distribution (the statistical ``std`` does not
 contain model error, which a designer may want to cover).
 """
@@ -53,6 +54,7 @@ def twin(report: DiagnosisReport, spread: float = 1.0) -> dict[str, Any]:
     randomize: dict[str, Any] = {}
     fixed: dict[str, dict[str, float]] = {}
     not_reproduced: list[str] = []
+    notes: list[str] = []
     ext = report.extension
     table = [] if (ext is not None and ext.get("extends") == "nominal model") else [
         c["cause"] for c in report.causes if c["cause"] != "none"]
@@ -81,12 +83,11 @@ def twin(report: DiagnosisReport, spread: float = 1.0) -> dict[str, Any]:
                                   "the environments have no sensor scale factor")
             continue
         if sd is None or not math.isfinite(sd):
-            not_reproduced.append(f"{term['name']}: no finite uncertainty, kept fixed at {c:.6g}")
+            notes.append(f"{term['name']}: no finite uncertainty, kept fixed at {c:.6g}")
             randomize[key] = c
         else:
             randomize[key] = ["normal", c, spread * float(sd)]
     Randomization(randomize)  # the environments will read it: check it here
-    notes = []
     if not report.explained and not report.extended:
         notes.append("the diagnosis did not explain the log to within the noise: the twin carries its closest "
                      "candidates, not a confirmed model")

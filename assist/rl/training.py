@@ -284,14 +284,15 @@ def training_randomization(vehicle: Vehicle) -> dict[str, Any]:
 
 def native_training_env(n_envs: int, seed: int, distribution: TrainingDistribution, encoder: ObsEncoder,
                         tau_max: float, vehicle: Vehicle, smooth_weight: float = SMOOTH_WEIGHT, pool: int = 64,
-                        randomize_vehicle: bool = True):
+                        randomize_vehicle: bool = True) -> Any:
     """The SB3 ``VecEnv`` of native training: :class:`ptw_env.vector.PTWRollVectorEnv` with ``n_envs`` envs
     (seeded ``seed + i``), a pool of ``pool`` rides drawn once from ``distribution`` (with
     ``numpy.random.default_rng(seed)``), each episode one of them, mirrored with probability 1/2; the
     sensor noise drawn per episode as a factor in ``[lo/hi, 1]`` of ``hi`` percent of each channel's range
     (``distribution.noise_pct = (lo, hi)``; the GPS speed noise scales with it, unlike :class:`TrainingEnv`);
     :func:`training_randomization` when ``randomize_vehicle``; seen through ``encoder`` with the
-    action-change penalty ``smooth_weight`` (:class:`EncodedVecEnv`)."""
+    action-change penalty ``smooth_weight`` (:class:`EncodedVecEnv`). Its ``description`` (pool, mirror,
+    noise, randomisation) goes into the policy's sidecar."""
     from ptw_env.vector import PTWRollVectorEnv
 
     from assist.rl.vecenv import SB3VecEnv
@@ -310,7 +311,10 @@ def native_training_env(n_envs: int, seed: int, distribution: TrainingDistributi
                             normalize_action=True, tau_max=tau_max, vehicle=vehicle, randomize=randomize or None)
     sb3 = SB3VecEnv(venv)
     sb3.seed(int(seed))
-    return EncodedVecEnv(sb3, encoder, smooth_weight)
+    out = EncodedVecEnv(sb3, encoder, smooth_weight)
+    out.description = {"pool": int(pool), "mirror": bool(distribution.mirror), "noise_pct_max": float(hi),
+                       "randomize": randomize}
+    return out
 
 
 def _encoded_vec_env_class():
@@ -362,7 +366,7 @@ def _encoded_vec_env_class():
     return EncodedVecEnvImpl
 
 
-def EncodedVecEnv(venv, encoder: ObsEncoder, smooth_weight: float = SMOOTH_WEIGHT):
+def EncodedVecEnv(venv: Any, encoder: ObsEncoder, smooth_weight: float = SMOOTH_WEIGHT) -> Any:
     """:class:`EncodedVecEnvImpl` over ``venv`` (an SB3 ``VecEnv``; needs the ``[rl]`` extra)."""
     require_sb3()
     return _encoded_vec_env_class()(venv, encoder, smooth_weight)
@@ -453,6 +457,9 @@ def build_model(algo: str = "ppo", seed: int = 0, n_envs: int = 4, vec: str = "d
     encoder = probe.encoder
     env_kwargs.update(encoder=encoder.config(), distribution=probe.distribution, tau_max=probe.tau_max)
     if vec == "native":
+        if probe.fixed is not None:
+            raise PolicyError("vec='native' trains on a pool of rides drawn from the distribution; 'fixed' is "
+                              "for the dummy/subproc envs")
         venv = native_training_env(n_envs, seed, probe.distribution, encoder, probe.tau_max, probe.vehicle,
                                    probe.smooth_weight)
     else:
@@ -558,8 +565,7 @@ def train(
         "distribution": env_kwargs["distribution"].describe()
         if not env_kwargs.get("fixed") else {"fixed": dict(env_kwargs["fixed"])},
         "smooth_weight": float(env_kwargs.get("smooth_weight", SMOOTH_WEIGHT)),
-        **({"native": {"pool": 64, "mirror": True, "randomize": training_randomization(env_kwargs.get("vehicle") or REFERENCE_SCOOTER)}}
-           if vec == "native" else {}),
+        **({"native": getattr(getattr(venv, "venv", venv), "description", None)} if vec == "native" else {}),
         "hyper": json.loads(json.dumps(params, default=str)), "versions": versions(), "command": command,
     }
     model.ptw_rl = meta  # saved with the model (BaseAlgorithm.save stores the instance's attributes)

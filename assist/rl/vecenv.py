@@ -58,7 +58,8 @@ class SB3VecEnv(VecEnv):  # type: ignore[misc,valid-type]
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.asarray(actions)
 
-    def step_wait(self):
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
+        """The vector env's step in SB3's form (module docstring): ended envs reset at once."""
         obs, reward, terminated, truncated, info = self.venv.step(self._actions)
         done = terminated | truncated
         cost = info.get("cost")
