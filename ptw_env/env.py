@@ -13,8 +13,8 @@ from gymnasium import spaces
 
 from .dynamics import compile_plant
 from .effects import Effects, as_effects
-from .episode import (REASONS, SCENARIO_END, Actuator, CostConfig, EpisodeConfigError, actuate, end_code,
-                      grip_utilisation, roll_reward, step_cost)
+from .episode import (OBS_REF, OBS_ROLL, OBS_VX, REASONS, SCENARIO_END, Actuator, CostConfig, EpisodeConfigError,
+                      actuate, command, end_code, grip_utilisation, observe_into, roll_reward, step_cost)
 from .friction import FrictionPlants, FrictionSchedule
 from .integrate import Stepper, plant_rate, substeps_for
 from .randomize import Randomization, RandomizationError
@@ -40,7 +40,14 @@ def obs_index(*names: str) -> tuple[int, ...]:
         raise ValueError(f"unknown observation channel(s) {bad}; the channels are {OBS_NAMES}") from None
 
 
-_OBS_VX, _OBS_REF, _OBS_ROLL = obs_index("vx", "phi_ref", "roll")
+assert obs_index("vx", "phi_ref", "roll") == (OBS_VX, OBS_REF, OBS_ROLL)  # the layout observe_into writes
+
+
+def draw_ride(rng: np.random.Generator, n_rides: int, mirror: bool) -> tuple[int, bool]:
+    """An episode's ride: its index in a pool of ``n_rides`` and whether it is mirrored, drawn from ``rng``
+    (one ``integers`` call when there is a choice, one ``random`` call with ``mirror``)."""
+    j = int(rng.integers(n_rides)) if n_rides > 1 else 0
+    return j, bool(mirror and rng.random() < 0.5)
 
 
 class EnvConfigError(ValueError):
@@ -454,13 +461,7 @@ class PTWRollEnv(gym.Env):
         x = self.state
         y = self._sensors.measure(x, float(self.profile.vx[self._k]), float(self.plant.ay(x)))
         obs = np.empty(len(self._obs_hi), dtype=np.float32)
-        obs[:5] = y[:5]  # delta, delta_rate, yaw_rate, roll_rate, ay (OBS_NAMES[:5] == CHANNELS[:5])
-        obs[_OBS_VX] = y[6]  # vx (GPS)
-        obs[_OBS_REF] = self.profile.phi_ref[self._k]
-        if self.observe_roll:
-            obs[_OBS_ROLL] = y[5]
-        np.minimum(obs, self._obs_hi, out=obs)
-        np.maximum(obs, self._obs_lo, out=obs)
+        observe_into(y, float(self.profile.phi_ref[self._k]), self.observe_roll, self._obs_hi, obs)
         self._last_measurement = y
         return obs
 
@@ -484,8 +485,7 @@ class PTWRollEnv(gym.Env):
         if options:
             raise EnvConfigError(f"unknown reset option(s): {sorted(options)}; known: x0")
         if len(self.pool) > 1 or self.mirror:  # the ride: first draws of the episode
-            self.ride_index = int(self.np_random.integers(len(self.pool))) if len(self.pool) > 1 else 0
-            self.mirrored = bool(self.np_random.random() < 0.5) if self.mirror else False
+            self.ride_index, self.mirrored = draw_ride(self.np_random, len(self.pool), self.mirror)
             self.profile = self.pool[self.ride_index][1 if self.mirrored else 0]
             self.max_steps = len(self.profile.t) - 1
         if self.randomization is not None:  # then the randomised values (ptw_env.randomize)
@@ -529,11 +529,7 @@ class PTWRollEnv(gym.Env):
             ) from None
         if not math.isfinite(u):
             raise InvalidActionError(f"action is not finite: {u!r} (step {self._k}, t = {self._k * self.dt:.2f} s)")
-        lim = float(self.action_space.high[0])
-        clipped = u > lim or u < -lim
-        if clipped:
-            u = lim if u > 0 else -lim
-        tau = u * self.tau_max if self.normalize_action else u
+        tau, clipped = command(u, float(self.action_space.high[0]), self.tau_max, self.normalize_action)
 
         k = self._k
         vx = float(self.profile.vx[k])

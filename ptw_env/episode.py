@@ -92,6 +92,39 @@ class Actuator:
         return int(round(d)), alpha, self.rate_limit * dt, limit
 
 
+#: Where the observation's channels sit (``ptw_env.env.OBS_NAMES``): the five IMU and encoder channels first,
+#: then the GPS speed, the reference, and the roll angle with ``observe_roll``.
+OBS_VX, OBS_REF, OBS_ROLL = 5, 6, 7
+
+
+@njit(cache=True)
+def command(u, lim, tau_max, normalize):
+    """``(tau [N m], clipped)`` of an action ``u``: clipped to ``[-lim, lim]`` (the action box; the rider's
+    strength), times ``tau_max`` [N m] when actions are normalised."""
+    clipped = u > lim or u < -lim
+    if clipped:
+        u = lim if u > 0 else -lim
+    return (u * tau_max if normalize else u), clipped
+
+
+@njit(cache=True)
+def observe_into(meas, phi_ref, observe_roll, obs_hi, obs):
+    """The observation (float32) from a measured row ``meas`` (:data:`ptw_env.sensors.CHANNELS` order) and the
+    reference roll ``phi_ref`` [rad]: ``[delta, delta_rate, yaw_rate, roll_rate, ay, vx, phi_ref(, roll)]``,
+    each clipped to ``+-obs_hi`` (the sensors' full scale)."""
+    for j in range(5):
+        obs[j] = meas[j]
+    obs[OBS_VX] = meas[6]
+    obs[OBS_REF] = phi_ref
+    if observe_roll:
+        obs[OBS_ROLL] = meas[5]
+    for j in range(obs.shape[0]):
+        if obs[j] > obs_hi[j]:
+            obs[j] = obs_hi[j]
+        elif obs[j] < -obs_hi[j]:
+            obs[j] = -obs_hi[j]
+
+
 @njit(cache=True)
 def actuate(cmd, buf, k, prev, alpha, rate_step, limit):
     """Torque [N m] the actuator applies over period ``k`` (:class:`Actuator`, steps 1-4) for the command

@@ -421,6 +421,15 @@ def sense_into(x, vx, ay, gain, n_delay, frac, hist, offset, noise, counters, he
     out[6] = held[0]
 
 
+def draw_noise(rng: np.random.Generator, std: np.ndarray, out: np.ndarray) -> None:
+    """A new block of noise rows into ``out`` (B, 7): ``rng.standard_normal(out.shape) * std`` [channel units];
+    zeros, drawing nothing, when every ``std`` is 0 (a noise-free sensor set uses no random numbers)."""
+    if np.any(std > 0.0):
+        out[:] = rng.standard_normal(out.shape) * std
+    else:
+        out[:] = 0.0
+
+
 def sensor_terms(config: SensorConfig, effects: Effects, n: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(offset, std, gravity_gain)`` of :func:`sense_into` for a sensor configuration and sensor effects:
     ``offset_c = bias_c (+ gyro_bias on the two gyros)``, ``std_c = noise_std_c``, the ay_frame gain, CHANNELS
@@ -585,7 +594,7 @@ class SensorModel:
             raise SensorConfigError(f"measure: x must be the 8 states of model.md, got {len(x)} values")
         noise = self._noise
         if noise.shape[0] and self._counters[2] >= noise.shape[0]:
-            noise[:] = self._rng.standard_normal(noise.shape) * self.std
+            draw_noise(self._rng, self.std, noise)
             self._counters[2] = 0
         out = np.empty(len(CHANNELS))
         sense_into(np.asarray(x, dtype=float), float(vx), float(ay), self.gravity_gain, self.n_delay,

@@ -49,10 +49,11 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numba import njit, prange
 
-from .env import FALL_ANGLE, EnvConfigError, PTWRollEnv, advance_pose
-from .episode import REASONS, SCENARIO_END, actuate, end_code, grip_utilisation, roll_reward, step_cost
+from .env import FALL_ANGLE, EnvConfigError, PTWRollEnv, advance_pose, draw_ride
+from .episode import (REASONS, SCENARIO_END, actuate, command, end_code, grip_utilisation, observe_into, roll_reward,
+                      step_cost)
 from .kernels import advance, scratch
-from .sensors import CHANNELS, NOISE_BLOCK, sense_into, sensor_terms
+from .sensors import CHANNELS, NOISE_BLOCK, draw_noise, sense_into, sensor_terms
 
 
 
@@ -73,7 +74,6 @@ def vector_step(actions, mode, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, d
     samples) and of ``max_steps``. Everything else as :class:`PTWRollEnv.step`."""
     N = x.shape[0]
     chunk = (N + nth - 1) // nth
-    nobs = obs.shape[1]
     for th in prange(nth):
         M, c, g, ks = scratch()
         for i in range(th * chunk, min(N, (th + 1) * chunk)):
@@ -91,15 +91,7 @@ def vector_step(actions, mode, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, d
                 clipped[i] = False
                 util[i] = grip_utilisation(x[i], fmax[p], fz, road_mu)
             else:
-                u = actions[i]
-                cl = False
-                if u > lim:
-                    u = lim
-                    cl = True
-                elif u < -lim:
-                    u = -lim
-                    cl = True
-                tau = u * tau_max if normalize else u
+                tau, cl = command(actions[i], lim, tau_max, normalize)
                 kk = k[i]
                 prev = aprev[i]
                 a = actuate(tau, abuf[i], kk, prev, alpha, rate_step, alimit)
@@ -126,17 +118,7 @@ def vector_step(actions, mode, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, d
             kk = k[i]
             sense_into(x[i], vx_prof[pr, kk], (x[i, 6] + x[i, 7]) / mass[p], gain[i], n_delay, frac, hist[i],
                        offset[i], noise[i], counters[i], held[i], q, q_first, gps_step, true[i], meas[i])
-            for j in range(5):
-                obs[i, j] = meas[i, j]
-            obs[i, 5] = meas[i, 6]
-            obs[i, 6] = ref_prof[pr, kk]
-            if observe_roll:
-                obs[i, 7] = meas[i, 5]
-            for j in range(nobs):
-                if obs[i, j] > obs_hi[j]:
-                    obs[i, j] = obs_hi[j]
-                elif obs[i, j] < -obs_hi[j]:
-                    obs[i, j] = -obs_hi[j]
+            observe_into(meas[i], ref_prof[pr, kk], observe_roll, obs_hi, obs[i])
 
 
 class PTWRollVectorEnv(VectorEnv):
@@ -289,9 +271,8 @@ class PTWRollVectorEnv(VectorEnv):
                 self._rngs[i], self._seeds[i] = seeding.np_random(sd)
         if len(tpl.pool) > 1 or tpl.mirror:  # the ride, first (the single env's order)
             for i in idx:
-                rng = self._rngs[i]
-                j = int(rng.integers(len(tpl.pool))) if len(tpl.pool) > 1 else 0
-                self._prof[i] = 2 * j + (1 if tpl.mirror and rng.random() < 0.5 else 0)
+                j, m = draw_ride(self._rngs[i], len(tpl.pool), tpl.mirror)
+                self._prof[i] = 2 * j + int(m)
         rnd = self.randomization
         if rnd is not None:
             samples = rnd.sample_many([self._rngs[i] for i in idx])
@@ -340,10 +321,7 @@ class PTWRollVectorEnv(VectorEnv):
         if B == 0:
             return
         for i in np.flatnonzero(active & (self._counters[:, 2] >= B)):
-            if np.any(self._std[i] > 0.0):
-                self._noise[i] = self._rngs[i].standard_normal((B, len(CHANNELS))) * self._std[i]
-            else:
-                self._noise[i] = 0.0
+            draw_noise(self._rngs[i], self._std[i], self._noise[i])
             self._counters[i, 2] = 0
 
     def _run(self, actions: np.ndarray, mode: np.ndarray) -> None:

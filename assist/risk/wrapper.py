@@ -39,12 +39,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from ptw_env.env import obs_index
+
 from .monitor import PathAhead, RiskAssessment
 from .pipeline import RiskPipeline, default_estimator
 
 #: Observation indices of the estimator's outputs ``[delta, yaw_rate, roll_rate, delta_rate, ay]`` and of vx.
-_OBS_Y = (0, 2, 3, 1, 4)
-_OBS_VX = 5
+_OBS_Y = obs_index("delta", "yaw_rate", "roll_rate", "delta_rate", "ay")
+(_OBS_VX,) = obs_index("vx")
 
 
 class RiskWarningWrapper(gym.Wrapper):
