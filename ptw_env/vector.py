@@ -195,8 +195,7 @@ class PTWRollVectorEnv(VectorEnv):
         self._n_delay, self._frac, self._q, self._q_first, self._gps_step = (
             sm.n_delay, sm.frac_delay, sm.quantum, sm.quantise_first, sm.gps_step)
         self._base_offset, self._base_std, self._base_gain = sm.offset, sm.std, sm.gravity_gain
-        self._noisy = sm.noisy or (self.randomization is not None and "sensor_noise_scale" in self.randomization.keys
-                                   and bool(np.any(sm.std > 0)))
+        self._noisy = sm.noisy  # a noise scale multiplies the noise: none stays none
         delay, self._alpha, self._rate_step, self._alimit = tpl.actuator.discrete(tpl.dt, tpl.tau_max)
         nobs = self.single_observation_space.shape[0]
 
