@@ -74,6 +74,9 @@ class Plant:
     Einv : ndarray, shape (*batch, 8, 8)
         ``E^-1`` of the plant (payload included): how a generalised force in a row of model.md
         moves the state derivative (:func:`add_generalised_forces`).
+    fz : ndarray, shape (*batch, 2)
+        Static normal loads ``(Fzf, Fzr)`` [N] of the vehicle's tires (of each drawn vehicle when the
+        vehicle itself is randomised; ``vehicle`` is then the nominal one).
     """
 
     vehicle: Vehicle
@@ -84,6 +87,7 @@ class Plant:
     bank: np.ndarray
     mass: np.ndarray
     Einv: np.ndarray
+    fz: np.ndarray
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
@@ -139,8 +143,13 @@ class Plant:
         return x[..., 6:8] + d[..., 6:8] / (vx[..., None] * self.inv_sigma)
 
 
-def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
+def compile_plant(vehicle: Vehicle | None = None, effects=None, model: tuple | None = None) -> Plant:
     """Fold a vehicle and its dynamic effects into a :class:`Plant`.
+
+    ``model``: ``(E, A0, A1, mass, loads)`` of a batch of vehicles of ``vehicle``'s layout
+    (:func:`ptw_env.sharp.parameter_batch`: the vehicle's masses, geometry or inertias drawn by domain
+    randomisation) in place of ``vehicle``'s own matrices, total mass [kg] and static axle loads [N];
+    its batch shape broadcasts with the effects'.
 
     Implements effects.md exactly:
 
@@ -160,18 +169,22 @@ def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
     """
     vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
     eff = as_effects(effects)
-    bshape = eff.batch_shape
+    if model is None:
+        model = (vehicle.E, vehicle.A0, vehicle.A1, np.asarray(vehicle.mass, dtype=float),
+                 np.array([vehicle.tires.Fzf, vehicle.tires.Fzr]))
+    E0, A00, A10, mass0, fz = model
+    bshape = np.broadcast_shapes(eff.batch_shape, np.shape(mass0))
 
     def p(cause: str, param: str, nominal: float | None = None) -> np.ndarray:
         return np.broadcast_to(np.asarray(eff.value(cause, param, nominal), dtype=float), bshape)
 
-    E = np.broadcast_to(vehicle.E, bshape + (8, 8)).copy()
-    A0 = np.broadcast_to(vehicle.A0, bshape + (8, 8)).copy()
-    A1 = np.broadcast_to(vehicle.A1, bshape + (8, 8)).copy()
+    E = np.broadcast_to(E0, bshape + (8, 8)).copy()
+    A0 = np.broadcast_to(A00, bshape + (8, 8)).copy()
+    A1 = np.broadcast_to(A10, bshape + (8, 8)).copy()
     Bv = vehicle.B
 
     # nominal relaxation lengths from a77 = -vx/sigma_f, a88 = -vx/sigma_r
-    sigma0 = -1.0 / np.array([vehicle.A1[FYF, FYF], vehicle.A1[FYR, FYR]])
+    sigma0 = -1.0 / np.stack([A1[..., FYF, FYF], A1[..., FYR, FYR]], axis=-1)
 
     m = p("payload", "mass_kg")
     hp = PAYLOAD_HEIGHT
@@ -183,7 +196,7 @@ def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
     A0[..., 4, 0] += m * hp * G
     A1[..., 4, 3] += -m * hp
 
-    A0[..., 5, 5] = -p("steer_damping", "damping_nms", -vehicle.A0[DELTA_DOT, DELTA_DOT])
+    A0[..., 5, 5] = -p("steer_damping", "damping_nms", -A0[..., DELTA_DOT, DELTA_DOT])
 
     # tire rows: F_lin,k = (sigma0_k / vx) * sum_{j != k} a_kj(vx) x_j, scaled by the stiffness factors
     scale = np.stack([p("tire_stiffness", "front_scale"), p("tire_stiffness", "rear_scale")], axis=-1)
@@ -195,7 +208,7 @@ def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
     tire0 *= (scale * sigma0)[..., None]
     tire1 *= (scale * sigma0)[..., None]
 
-    total_mass = vehicle.mass + m
+    total_mass = mass0 + m
     bank = p("road_bank", "bank_rad")
     const = np.zeros(bshape + (8,))
     const[..., 2] = -total_mass * G * np.sin(bank)
@@ -223,7 +236,7 @@ def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
         inv_sigma = 1.0 / p("relaxation_length", "sigma_m")[..., None] * np.ones(2)
     else:
         inv_sigma = np.broadcast_to(1.0 / sigma0, bshape + (2,))
-    fz = np.array([vehicle.tires.Fzf, vehicle.tires.Fzr])
+    fz = np.broadcast_to(fz, bshape + (2,))
     fmax = p("tire_saturation", "mu_peak")[..., None] * fz
     W.setflags(write=False)
     return Plant(
@@ -235,6 +248,7 @@ def compile_plant(vehicle: Vehicle | None = None, effects=None) -> Plant:
         bank=np.array(bank),
         mass=np.array(total_mass),
         Einv=Einv,
+        fz=np.array(fz),
     )
 
 

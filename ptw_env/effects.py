@@ -85,9 +85,13 @@ def _check_value(cause: str, param: str, value: Any) -> float | np.ndarray:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise EffectError(f"effect {cause}: parameter {param} must be a number, got {value!r}") from None
-    if np.any(np.isnan(arr)) or (np.any(np.isinf(arr)) and not (cause == "tire_saturation")):
+    # the smallest and the largest element decide every check (NaN propagates through min and max)
+    if arr.size == 0:
+        return arr
+    mn, mx = (float(arr), float(arr)) if arr.ndim == 0 else (float(arr.min()), float(arr.max()))
+    if math.isnan(mn) or math.isnan(mx) or ((math.isinf(mn) or math.isinf(mx)) and not (cause == "tire_saturation")):
         raise EffectError(f"effect {cause}: parameter {param} must be finite, got {value!r}")
-    if np.any(arr < lo) or np.any(arr > hi):
+    if mn < lo or mx > hi:
         raise EffectError(
             f"effect {cause}: parameter {param} = {value!r} {unit} is outside its physical range [{lo}, {hi}]"
         )
@@ -177,11 +181,20 @@ class Effects:
             for c, ps in self.params.items()
         ]
 
+    @classmethod
+    def _checked(cls, params: Mapping[str, Mapping[str, Any]]) -> "Effects":
+        """An :class:`Effects` of parameters taken from other :class:`Effects` (already checked: not again)."""
+        out = object.__new__(cls)
+        object.__setattr__(out, "params", MappingProxyType({c: MappingProxyType(dict(p)) for c, p in params.items()}))
+        return out
+
     def __or__(self, other: "Effects") -> "Effects":
+        if not isinstance(other, Effects):
+            return NotImplemented
         merged: dict[str, dict[str, Any]] = {c: dict(p) for c, p in self.params.items()}
         for c, p in other.params.items():
             merged.setdefault(c, {}).update(p)
-        return Effects(merged)
+        return Effects._checked(merged)
 
     # -- queries --------------------------------------------------------------
     def has(self, cause: str) -> bool:
@@ -207,12 +220,12 @@ class Effects:
     @property
     def dynamic(self) -> "Effects":
         """Only the effects that change the vehicle dynamics."""
-        return Effects({c: p for c, p in self.params.items() if c in DYNAMIC_CAUSES})
+        return Effects._checked({c: p for c, p in self.params.items() if c in DYNAMIC_CAUSES})
 
     @property
     def sensor(self) -> "Effects":
         """Only the effects that change the sensor readings."""
-        return Effects({c: p for c, p in self.params.items() if c in SENSOR_CAUSES})
+        return Effects._checked({c: p for c, p in self.params.items() if c in SENSOR_CAUSES})
 
     def __bool__(self) -> bool:
         return bool(self.params)

@@ -255,8 +255,9 @@ class PTWRollEnv(gym.Env):
     mirror : bool
         Mirror each episode left/right with probability 1/2 (:meth:`ptw_env.scenarios.Profile.mirrored`).
     randomize : Randomization, mapping or JSON file, optional
-        Domain randomisation (:mod:`ptw_env.randomize`): effect parameters, sensor noise and bias drawn
-        from seeded distributions at every ``reset``; ``info["randomized"]`` holds the episode's values.
+        Domain randomisation (:mod:`ptw_env.randomize`): effect parameters, generalised forces, the
+        vehicle's own physical parameters (a vehicle file's), sensor noise and bias drawn from seeded
+        distributions for every episode; ``info["randomized"]`` holds the episode's values.
     render_mode : {"rgb_array", "human", None}
 
     Version history
@@ -371,7 +372,6 @@ class PTWRollEnv(gym.Env):
         except EpisodeConfigError as exc:
             raise EnvConfigError(str(exc)) from None
         self._act_buf = np.zeros(delay + 1)
-        self._fz = np.array([self.vehicle.tires.Fzf, self.vehicle.tires.Fzr])
         cc = self.cost_config
         #: ``(grip_limit, roll_limit [rad], torque step limit [N m per period], road_mu)`` of the cost
         self.cost_limits = (cc.grip_limit, math.radians(cc.roll_limit_deg), cc.torque_rate_limit * self.tau_max * self.dt,
@@ -380,17 +380,29 @@ class PTWRollEnv(gym.Env):
             self.randomization = Randomization.coerce(randomize)
         except RandomizationError as exc:
             raise EnvConfigError(str(exc)) from None
+        vehicle_rate = 0.0
+        if self.randomization is not None:
+            try:
+                vehicle_rate = self.randomization.check_vehicle(self.vehicle)
+            except RandomizationError as exc:
+                raise EnvConfigError(str(exc)) from None
         if self.randomization is not None and friction is not None:
             raise EnvConfigError("randomize= and friction= together are not supported: randomise "
                                  "tire_saturation:mu_peak for the road's friction instead")
         self.randomized: dict[str, float] = {}
+        self._next_sample: dict[str, float] | None = None
 
         self.plant = compile_plant(self.vehicle, self.effects.dynamic)
         self._stepper = Stepper(self.plant, self.dt)
         if self.randomization is not None and self.randomization.changes_plant:
-            # substeps for the stiffest plant the randomisation can draw (e.g. Coulomb steering friction)
-            stiff = self.randomization.plant(self.vehicle, self.effects, self.randomization.extreme_samples())
-            nsub = max(self._stepper.nsub, substeps_for(self.dt, vehicle=self.vehicle, extra_rate=plant_rate(stiff)))
+            # substeps for the stiffest plant the randomisation can draw (e.g. Coulomb steering friction, the
+            # fastest of the vehicles it draws)
+            try:
+                stiff = self.randomization.plant(self.vehicle, self.effects, self.randomization.extreme_samples())
+            except RandomizationError as exc:
+                raise EnvConfigError(str(exc)) from None
+            nsub = max(self._stepper.nsub, substeps_for(self.dt, vehicle=self.vehicle,
+                                                        extra_rate=max(plant_rate(stiff), vehicle_rate)))
             self._stepper = Stepper(self.plant, self.dt, substeps=nsub)
         self.friction = friction
         self._friction = None if friction is None else FrictionPlants(friction, self.vehicle, self.effects, self.dt)
@@ -489,7 +501,10 @@ class PTWRollEnv(gym.Env):
             self.profile = self.pool[self.ride_index][1 if self.mirrored else 0]
             self.max_steps = len(self.profile.t) - 1
         if self.randomization is not None:  # then the randomised values (ptw_env.randomize)
-            self.randomized = self.randomization.sample(self.np_random)
+            if seed is not None or self._next_sample is None:  # the first episode's values (or a new seed's)
+                self._next_sample = self.randomization.sample(self.np_random)
+            self.randomized = self._next_sample
+            self._next_sample = self.randomization.sample(self.np_random)  # the next episode's, drawn now
             _, self._sensors = self.episode_models(self.randomized)
             if self.randomization.changes_plant:
                 self.plant = self.randomization.plant(self.vehicle, self.effects, self.randomized)
@@ -563,7 +578,7 @@ class PTWRollEnv(gym.Env):
             self.state = np.nan_to_num(x, nan=0.0, posinf=0.0, neginf=0.0)
         self._k = nxt
         grip, roll_lim, dtau_lim, road_mu = self.cost_limits
-        util = grip_utilisation(self.state, stepper.plant.fmax, self._fz, road_mu)
+        util = grip_utilisation(self.state, stepper.plant.fmax, stepper.plant.fz, road_mu)
         cost = step_cost(util, phi, applied - prev, grip, roll_lim, dtau_lim)
         obs = self._observe()
         info = self._info()
@@ -587,8 +602,9 @@ class PTWRollEnv(gym.Env):
 
     @property
     def axle_loads(self) -> np.ndarray:
-        """Static normal loads ``(Fzf, Fzr)`` [N] of the vehicle's tires."""
-        return self._fz
+        """Static normal loads ``(Fzf, Fzr)`` [N] of the vehicle's tires (this episode's vehicle when it is
+        randomised)."""
+        return self.plant.fz
 
     @property
     def sensor_model(self) -> SensorModel:

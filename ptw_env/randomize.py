@@ -14,6 +14,24 @@ A description maps a *key* to a *distribution*. Keys:
   steer, FEATURE one of :data:`ptw_env.dynamics.FORCE_FEATURES`), e.g. ``"force:steer:delta_dot"``
   (viscous steering friction [N m s/rad]) or ``"force:roll:vx^2"``: a model extension of the diagnosis
   (a digital twin, ``ptw-assist twin``).
+* ``"vehicle:PARAM"``: a physical parameter of the vehicle (:data:`ptw_env.sharp.SPECS`, SI units: masses,
+  mass-centre positions, wheelbase, caster, trail, inertias, wheel spin inertias, damper, tyre stiffness and
+  relaxation lengths), e.g. ``"vehicle:M_r"`` [kg] (the rider's mass is in the rear frame), ``"vehicle:h"``
+  [m], ``"vehicle:I_rx"`` [kg m^2]; ``"vehicle_scale:PARAM"``: a factor on the vehicle's own value (the same
+  description then suits any vehicle, e.g. ``("uniform", 0.9, 1.1)``). The drawn vehicle is built from its
+  parameters by Table V (:func:`ptw_env.sharp.parameter_batch`: ``E``, ``A0``, ``A1``, the mass, the axle
+  loads; ``Z_f`` follows the statics), so the vehicle must have physical parameters (a vehicle file; not the
+  reference scooter, given as matrix entries). The action scale, the observation bounds, the sensors' ranges
+  and the speed range stay the nominal vehicle's (the spaces cannot change per episode). When the
+  environment is made, the vehicles at the corners of the box of the supports are built and checked (all
+  ``2^k`` corners for ``k <= 10`` keys, else all-low, all-high and each key at its other end): a rule of
+  :data:`~ptw_env.sharp.SPECS` broken, a wheel without load (the combined mass centre outside the wheelbase)
+  or a mass matrix that is not positive definite is an error then. For the rules and the axle loads
+  (intervals and multilinear functions of the parameters) the corners decide for the whole box; the mass
+  matrix is quadratic in the mass-centre positions, so a draw inside the box could in principle still fail
+  its check: that reset then raises one :class:`RandomizationError` naming the keys. A normal on a vehicle
+  key needs finite bounds (``("normal", mean, std, low, high)``). The environment's integration step is sized
+  for the fastest linearised mode among the corners.
 * ``"sensor_noise_scale"``: a factor on every channel's noise standard deviation.
 * ``"sensor_bias:CHANNEL"``: an offset [channel unit] added to that channel's bias
   (:data:`ptw_env.sensors.CHANNELS`).
@@ -27,8 +45,11 @@ an error, a normal's tails are clipped to it (stated in :attr:`Randomization.des
 
 Draws come from the environment's own generator, one call of ``random(number of keys)`` mapped through
 each key's inverse distribution function in the sorted order of the keys, before the starting
-roll angle and the sensor noise, so ``reset(seed=s)`` gives the same vehicle, road and readings in the
-single environment and in env ``i`` of the vector environment seeded ``s - i``.
+roll angle and the sensor noise. A reset draws the *next* episode's values (the first reset, and a reset
+with a seed, draw the episode's own first, then the next one's): the vector environment then compiles the
+next episodes' plants many envs at a time, ahead of their resets. So ``reset(seed=s)`` gives the same
+vehicle, road and readings in the single environment and in env ``i`` of the vector environment seeded
+``s - i``, episode after episode.
 
 >>> import numpy as np
 >>> r = Randomization({"tire_saturation:mu_peak": ("uniform", 0.3, 1.0), "payload:mass_kg": ("normal", 0, 10)})
@@ -52,11 +73,18 @@ from scipy.special import ndtri
 from .dynamics import FORCE_FEATURES, FORCE_ROWS, Plant, add_generalised_forces, compile_plant
 from .effects import DYNAMIC_CAUSES, VOCABULARY, Effects
 from .sensors import CHANNELS
+from .sharp import SPECS, SharpParameterError, parameter_batch, table_v
+from .vehicle import fastest_rate
 
 DISTRIBUTIONS = ("fixed", "uniform", "loguniform", "normal", "choice")
 #: keys besides "CAUSE:PARAM"
-EXTRA_KEYS = (("tire_stiffness:scale", "sensor_noise_scale", "force:EQUATION:FEATURE")
-              + tuple(f"sensor_bias:{c}" for c in CHANNELS))
+EXTRA_KEYS = (("tire_stiffness:scale", "sensor_noise_scale", "force:EQUATION:FEATURE", "vehicle:PARAM",
+               "vehicle_scale:PARAM") + tuple(f"sensor_bias:{c}" for c in CHANNELS))
+#: the interval of each rule of :data:`ptw_env.sharp.SPECS` (ends are checked against the rule itself)
+_RULE_BOUNDS = {"positive": (0.0, math.inf), "nonnegative": (0.0, math.inf), "negative": (-math.inf, 0.0),
+                "any": (-math.inf, math.inf), "angle": (0.0, math.pi / 2)}
+#: largest number of vehicle keys whose 2^k corners are all checked
+MAX_CORNER_KEYS = 10
 
 
 class RandomizationError(ValueError):
@@ -214,6 +242,15 @@ class Randomization:
                     raise RandomizationError(f"randomize: {key!r} is not force:EQUATION:FEATURE with EQUATION one of "
                                              f"{', '.join(FORCE_ROWS)} and FEATURE one of {', '.join(FORCE_FEATURES)}")
                 bounds = (-math.inf, math.inf)
+            elif key.startswith(("vehicle:", "vehicle_scale:")):
+                kind, _, param = key.partition(":")
+                if param == "Z_f":
+                    raise RandomizationError(f"randomize: {key!r}: Z_f follows the statics of the drawn geometry "
+                                             "(Z_f' = Z_f Fzf'/Fzf); draw the masses or positions instead")
+                if param not in SPECS:
+                    raise RandomizationError(f"randomize: unknown vehicle parameter in {key!r}; parameters: "
+                                             f"{', '.join(p for p in SPECS if p != 'Z_f')}")
+                bounds = _RULE_BOUNDS[SPECS[param].rule] if kind == "vehicle" else (0.0, math.inf)
             elif key.startswith("sensor_bias:"):
                 if key[len("sensor_bias:"):] not in CHANNELS:
                     raise RandomizationError(f"randomize: unknown channel in {key!r}; channels: {', '.join(CHANNELS)}")
@@ -231,7 +268,18 @@ class Randomization:
             dists[key] = _parse(key, spec[key], bounds)
         if "tire_stiffness:scale" in dists and any(k in dists for k in ("tire_stiffness:front_scale", "tire_stiffness:rear_scale")):
             raise RandomizationError("randomize: give tire_stiffness:scale or the per-axle scales, not both")
+        for key in dists:
+            if key.startswith("vehicle:") and "vehicle_scale:" + key[len("vehicle:"):] in dists:
+                raise RandomizationError(f"randomize: give {key} or vehicle_scale:{key[len('vehicle:'):]}, not both")
         self.dists: dict[str, Distribution] = dists
+        # the keys of each kind of distribution with their numbers, for sample_table
+        self._by_kind: dict[str, tuple[np.ndarray, ...]] = {}
+        for kind in DISTRIBUTIONS:
+            cols = [j for j, d in enumerate(dists.values()) if d.kind == kind]
+            if cols:
+                ds = [list(dists.values())[j] for j in cols]
+                self._by_kind[kind] = (np.array(cols),) + tuple(np.array([getattr(d, f) for d in ds])
+                                                                 for f in ("a", "b", "low", "high"))
 
     @classmethod
     def coerce(cls, spec: "Randomization | Mapping | str | None") -> "Randomization | None":
@@ -252,17 +300,96 @@ class Randomization:
 
     @property
     def changes_plant(self) -> bool:
-        """True when a key changes the dynamics (the plant is compiled again at each reset)."""
-        return any(k.partition(":")[0] in DYNAMIC_CAUSES or k.startswith("force:") for k in self.dists)
+        """True when a key changes the dynamics (one plant per episode, compiled from the draws)."""
+        return any(k.partition(":")[0] in DYNAMIC_CAUSES or k.startswith(("force:", "vehicle:", "vehicle_scale:"))
+                   for k in self.dists)
+
+    @property
+    def vehicle_keys(self) -> tuple[str, ...]:
+        """The keys that draw the vehicle's own parameters (``vehicle:`` and ``vehicle_scale:``)."""
+        return tuple(k for k in self.dists if k.startswith(("vehicle:", "vehicle_scale:")))
+
+    def vehicle_values(self, vehicle: Any, samples: Mapping[str, Any]) -> dict[str, Any]:
+        """Parameter name -> drawn value [SI] of the vehicle keys in ``samples`` (a ``vehicle_scale:`` factor
+        times the vehicle's own value)."""
+        out = {}
+        for k, v in samples.items():
+            kind, _, param = k.partition(":")
+            if kind == "vehicle":
+                out[param] = v
+            elif kind == "vehicle_scale":
+                out[param] = np.asarray(v, dtype=float) * getattr(vehicle.parameters, param)
+        return out
+
+    def check_vehicle(self, vehicle: Any) -> float:
+        """Check every vehicle the description can draw from ``vehicle`` (module docstring: the corners of
+        the supports of the vehicle keys) and return their fastest linearised mode [1/s]
+        (:func:`ptw_env.vehicle.fastest_rate` over the vehicle's speed range; 0 without vehicle keys).
+
+        Raises
+        ------
+        RandomizationError
+            Vehicle keys on a vehicle without physical parameters, a factor on a parameter that is 0, an
+            unbounded normal, or a corner that is no vehicle (the message names the draw).
+        """
+        keys = self.vehicle_keys
+        if not keys:
+            return 0.0
+        params = getattr(vehicle, "parameters", None)
+        if params is None:
+            raise RandomizationError(
+                f"randomize: the keys {', '.join(keys)} draw the vehicle's physical parameters, but {vehicle.name} is given "
+                "as matrix entries (the reference scooter, model.md): use a vehicle file (ptw_env.vehicle_files, "
+                "e.g. 'sharp1971'), or randomise its tire_stiffness, payload and other effects instead")
+        E0, A00, A10, _ = table_v(params)
+        if not all(np.allclose(m, n, rtol=1e-9, atol=1e-9 * np.abs(n).max()) for m, n in
+                   ((E0, vehicle.E), (A00, vehicle.A0), (A10, vehicle.A1))):
+            raise RandomizationError(
+                f"randomize: {vehicle.name}'s matrices are not those of its physical parameters (edited after it was "
+                "built?), so drawing its parameters would discard the edit: build it again with sharp_vehicle")
+        ends = []
+        for k in keys:
+            lo, hi = self.dists[k].support
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                raise RandomizationError(f"randomize[{k!r}]: a normal on a vehicle parameter needs finite bounds "
+                                         f"(\"normal\", mean, std, low, high): every vehicle it can draw is checked")
+            if k.startswith("vehicle_scale:") and getattr(params, k.partition(":")[2]) == 0:
+                raise RandomizationError(f"randomize: {k}: {vehicle.name}'s {k.partition(':')[2]} is 0, so a factor "
+                                         f"changes nothing; draw vehicle:{k.partition(':')[2]} instead")
+            ends.append((lo, hi))
+        if len(keys) <= MAX_CORNER_KEYS:
+            corners = np.array(np.meshgrid(*ends, indexing="ij")).reshape(len(keys), -1)
+        else:  # all low, all high, and each key at its other end
+            lo, hi = np.array(ends).T
+            flips = [np.where(np.arange(len(keys)) == j, hi, lo) for j in range(len(keys))]
+            corners = np.array([lo, hi] + flips).T
+        samples = dict(zip(keys, corners))
+        try:
+            E, A0, A1, _, _ = parameter_batch(params, self.vehicle_values(vehicle, samples))
+        except SharpParameterError as exc:
+            raise RandomizationError(f"randomize: {', '.join(keys)} can draw a vehicle that is not one (at the "
+                                     f"ends of their ranges): {exc}") from None
+        return float(np.max(fastest_rate(E, A0, A1, vehicle.vmin, vehicle.vmax)))
 
     def forces(self, samples: Mapping[str, Any]) -> list[tuple[str, str, Any]]:
         """The sampled generalised forces ``(equation, feature, coefficient)``."""
         return [tuple(k.split(":", 2)[1:]) + (v,) for k, v in samples.items() if k.startswith("force:")]  # type: ignore[misc]
 
-    def plant(self, vehicle: Any, base: Effects, samples: Mapping[str, Any]) -> Plant:
-        """The episode's plant: ``vehicle`` with ``base``'s dynamic effects, the sampled effect parameters in
-        their place and the sampled generalised forces (arrays of samples: one plant each, a batch)."""
-        plant = compile_plant(vehicle, self.effects(base, samples).dynamic)
+    def plant(self, vehicle: Any, base: Effects, samples: Mapping[str, Any], effects: Effects | None = None) -> Plant:
+        """The episode's plant: ``vehicle`` (with the sampled physical parameters in place of its own, built by
+        Table V) with ``base``'s dynamic effects, the sampled effect parameters in their place and the sampled
+        generalised forces (arrays of samples: one plant each, a batch). ``effects``: :meth:`effects` of these
+        samples when the caller has them already."""
+        values = self.vehicle_values(vehicle, samples)
+        model = None
+        if values:
+            try:
+                model = parameter_batch(vehicle.parameters, values)
+            except SharpParameterError as exc:
+                raise RandomizationError(f"randomize: a draw of {', '.join(self.vehicle_keys)} is not a vehicle "
+                                         f"(between the corners checked when the environment was made): {exc}") from None
+        eff = self.effects(base, samples) if effects is None else effects
+        plant = compile_plant(vehicle, eff.dynamic, model=model)
         forces = self.forces(samples)
         return add_generalised_forces(plant, forces) if forces else plant
 
@@ -285,9 +412,31 @@ class Randomization:
 
     def sample_many(self, rngs: "list[np.random.Generator]") -> dict[str, np.ndarray]:
         """One episode's values for each generator (one env each): key -> array of ``len(rngs)``; exactly
-        :meth:`sample` of each generator."""
+        :meth:`sample` of each generator (columns of :meth:`sample_table`)."""
+        table = self.sample_table(rngs)
+        return {k: table[:, j] for j, k in enumerate(self.dists)}
+
+    def sample_table(self, rngs: "list[np.random.Generator]") -> np.ndarray:
+        """:meth:`sample_many` as one array ``(len(rngs), len(keys))``, columns in key order: the inverse
+        transforms of :meth:`Distribution.from_uniform` applied to all the keys of a kind at once (the same
+        arithmetic element by element)."""
         u = np.array([rng.random(len(self.dists)) for rng in rngs]).reshape(len(rngs), len(self.dists))
-        return {k: d.from_uniform(u[:, j]) for j, (k, d) in enumerate(self.dists.items())}
+        out = np.empty_like(u)
+        for kind, (cols, a, b, lo, hi) in self._by_kind.items():
+            x = u[:, cols]
+            if kind == "fixed":
+                out[:, cols] = a
+            elif kind == "uniform":
+                out[:, cols] = a + (b - a) * x
+            elif kind == "loguniform":
+                la, lb = (np.array([math.log(v) for v in end]) for end in (a, b))  # as from_uniform: math.log
+                out[:, cols] = np.exp(la + (lb - la) * x)
+            elif kind == "normal":
+                out[:, cols] = np.clip(a + b * ndtri(np.clip(x, 1e-300, None)), lo, hi)
+            else:
+                for j in cols:
+                    out[:, j] = self.dists[list(self.dists)[j]].from_uniform(u[:, j])
+        return out
 
     def effects(self, base: Effects, samples: Mapping[str, Any]) -> Effects:
         """``base`` with the sampled effect parameters in place of its own (arrays: one vehicle each)."""

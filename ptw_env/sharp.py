@@ -134,7 +134,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
-from typing import Mapping
+from types import SimpleNamespace
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -154,6 +155,59 @@ def static_front_load(M_f: float, M_r: float, k: float, l_f: float, l_r: float, 
     1012.5
     """
     return g * (M_r * l_r + M_f * (l_r + k)) / (l_f + l_r)
+
+
+#: row and column indices of the strict upper triangle of an 8 x 8 matrix (E is filled there, then mirrored)
+_UPPER = np.triu_indices(8, 1)
+
+
+def table_v(p: Any, g: float = G) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(E, A0, A1, B)`` of Table V (module docstring; Fouka et al. Table V, Sharp 1971) for ``p``: any object
+    with the attributes of :data:`SPECS` (SI units), each a number or an array; arrays of one shape give a
+    batch of vehicles, ``E`` of shape ``(*batch, 8, 8)`` (how domain randomisation draws whole vehicles,
+    :func:`parameter_batch`). The one copy of the formulas: :meth:`SharpParameters.matrices` calls it.
+    """
+    v = {n: getattr(p, n) for n in SPECS}  # numbers and arrays broadcast in the formulas
+    shape = np.broadcast_shapes(*(np.shape(x) for x in v.values()))
+    s, c = np.sin(v["eps"]), np.cos(v["eps"])
+    Mf, Mr, j, h, k, e, eta = (v[n] for n in ("M_f", "M_r", "j", "h", "k", "e", "eta"))
+    Ifx, Ifz = v["I_fx"], v["I_fz"]
+    E = np.zeros(shape + (8, 8))
+    E[..., range(8), range(8)] = 1.0
+    E[..., 2, 2], E[..., 2, 3], E[..., 2, 4], E[..., 2, 5] = Mf + Mr, Mf * k, Mf * j + Mr * h, Mf * e
+    E[..., 3, 3] = Mf * k**2 + v["I_rz"] + Ifx * s**2 + Ifz * c**2
+    E[..., 3, 4] = Mf * j * k - v["C_rxz"] + (Ifz - Ifx) * s * c
+    E[..., 3, 5] = Mf * e * k + Ifz * c
+    E[..., 4, 4] = Mf * j**2 + Mr * h**2 + v["I_rx"] + Ifx * c**2 + Ifz * s**2
+    E[..., 4, 5] = Mf * e * j + Ifz * s
+    E[..., 5, 5] = Ifz + Mf * e**2
+    E[..., _UPPER[1], _UPPER[0]] = E[..., _UPPER[0], _UPPER[1]]
+    gf, gr = v["i_fy"] / v["R_f"], v["i_ry"] / v["R_r"]  # wheel spin momentum per unit speed [kg m]
+    mh = Mf * j + Mr * h
+    stiff = Mf * e * g - eta * v["Z_f"]  # a52 = a61 [N m/rad]
+    A0, A1 = np.zeros(shape + (8, 8)), np.zeros(shape + (8, 8))
+    A0[..., 0, 4] = A0[..., 1, 5] = 1.0
+    A1[..., 2, 3] = -(Mf + Mr)
+    A0[..., 2, 6] = A0[..., 2, 7] = 1.0
+    A1[..., 3, 3], A1[..., 3, 4], A1[..., 3, 5] = -Mf * k, gf + gr, gf * s
+    A0[..., 3, 6], A0[..., 3, 7] = v["l_f"], -v["l_r"]
+    A0[..., 4, 0], A0[..., 4, 1] = mh * g, stiff
+    A1[..., 4, 3], A1[..., 4, 5] = -(mh + gf + gr), -gf * c
+    A0[..., 5, 0], A0[..., 5, 1] = stiff, stiff * s
+    A1[..., 5, 3], A1[..., 5, 4] = -(Mf * e + gf * s), gf * c
+    A0[..., 5, 5], A0[..., 5, 6] = -v["K"], -eta
+    sf, sr = v["sigma_f"], v["sigma_r"]
+    Cf1, Cf2, Cr1, Cr2 = v["C_f1"], v["C_f2"], v["C_r1"], v["C_r2"]
+    A1[..., 6, 0], A1[..., 6, 1] = Cf2 / sf, (Cf1 * c + Cf2 * s) / sf
+    A0[..., 6, 2], A0[..., 6, 3] = -Cf1 / sf, -Cf1 * v["l_f"] / sf
+    A0[..., 6, 5] = Cf1 * eta / sf
+    A1[..., 6, 6] = -1.0 / sf
+    A1[..., 7, 0] = Cr2 / sr
+    A0[..., 7, 2], A0[..., 7, 3] = -Cr1 / sr, Cr1 * v["l_r"] / sr
+    A1[..., 7, 7] = -1.0 / sr
+    B = np.zeros(8)
+    B[5] = 1.0
+    return E, A0, A1, B
 
 
 class SharpParameterError(ValueError):
@@ -222,6 +276,75 @@ def rule_violation(value: float, rule: str) -> str | None:
     return None
 
 
+def _load_violation(p: Any, Fzf: Any, g: float = G) -> str | None:
+    """Why the static loads (``Fzf`` [N], a number or an array, one per vehicle, and ``Fzr = M g - Fzf``) are
+    impossible, or None: each wheel must carry a positive load."""
+    Fzr = (np.asarray(p.M_f) + np.asarray(p.M_r)) * g - np.asarray(Fzf)
+    bad = np.flatnonzero((np.ravel(Fzf) <= 0) | (np.ravel(np.broadcast_to(Fzr, np.shape(Fzf))) <= 0))
+    if not bad.size:
+        return None
+    i = bad[0]
+    k, lf, lr = (float(np.ravel(np.broadcast_to(getattr(p, n), np.shape(Fzf)))[i]) for n in ("k", "l_f", "l_r"))
+    front = float(np.ravel(Fzf)[i])
+    rear = float(np.ravel(np.broadcast_to(Fzr, np.shape(Fzf)))[i])
+    return (f"the mass centres put {front:.1f} N on the front wheel and {rear:.1f} N on the rear (k = {k:g} m, "
+            f"l_f = {lf:g} m, l_r = {lr:g} m): the combined mass centre must lie between the contact points")
+
+
+def _inertia_violation(E: np.ndarray) -> str | None:
+    """Why the mass matrix ``E`` (shape ``(*batch, 8, 8)``) is not positive definite, or None."""
+    lam = np.linalg.eigvalsh(E[..., 2:6, 2:6])[..., 0]
+    if np.all(lam > 0):
+        return None
+    return ("the mass matrix E of these masses and inertias is not positive definite: check I_fx, I_fz, "
+            "I_rx, I_rz, C_rxz (a product of inertia too large for the moments?)")
+
+
+def parameter_batch(params: "SharpParameters", values: Mapping[str, Any],
+                    g: float = G) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Table V's model of ``params`` with ``values`` (parameter name -> number or array, one shape) in place of
+    its own: ``(E, A0, A1, mass, loads)`` with ``E`` of shape ``(*batch, 8, 8)``, ``mass = M_f + M_r`` [kg] and
+    ``loads = (Fzf, Fzr)`` [N] of shape ``(*batch, 2)`` (:func:`table_v`; :meth:`SharpParameters.static_loads`).
+    A batch of vehicles of one layout, drawn by domain randomisation (``randomize={"vehicle:M_r": ...}``).
+
+    ``Z_f`` is not a free parameter here: it follows the statics of each drawn geometry,
+    ``Z_f' = Z_f Fzf'/Fzf`` (the file's own relative gap to the statics kept), so that moving a mass moves the
+    front load (a52, a61) with it.
+
+    Raises
+    ------
+    SharpParameterError
+        A value that breaks its parameter's rule (:data:`SPECS`), a mass centre outside the wheelbase or a
+        mass matrix that is not positive definite (as :class:`SharpParameters`), naming the first such draw.
+    """
+    if "Z_f" in values:
+        raise SharpParameterError("Z_f follows the statics of the drawn geometry (Z_f' = Z_f Fzf'/Fzf): it is not "
+                                  "drawn itself")
+    base: dict[str, Any] = {n: getattr(params, n) for n in SPECS}
+    for n, v in values.items():
+        if n not in SPECS:
+            raise SharpParameterError(f"unknown parameter {n!r}; parameters: {', '.join(SPECS)}")
+        a = np.asarray(v, dtype=float)
+        for end in (a.min(initial=np.inf), a.max(initial=-np.inf)) if a.size else ():
+            why = rule_violation(float(end), SPECS[n].rule)  # a rule is an interval: both ends in it, all in it
+            if why:
+                raise SharpParameterError(f"{n} [{SPECS[n].unit}] ({SPECS[n].meaning}) {why}")
+        base[n] = a
+    p = SimpleNamespace(**base)
+    Fzf = np.broadcast_to(static_front_load(p.M_f, p.M_r, p.k, p.l_f, p.l_r, g),
+                          np.broadcast_shapes(*(np.shape(v) for v in values.values())))  # the rest are numbers
+    why = _load_violation(p, Fzf, g)
+    if why:
+        raise SharpParameterError(why)
+    p.Z_f = params.Z_f * Fzf / params.static_loads(g)[0]
+    E, A0, A1, _ = table_v(p, g)
+    why = _inertia_violation(E)
+    if why:
+        raise SharpParameterError(why)
+    mass = np.broadcast_to(p.M_f + p.M_r, Fzf.shape)
+    return E, A0, A1, mass, np.stack([Fzf, mass * g - Fzf], axis=-1)
+
+
 @dataclass(frozen=True)
 class SharpParameters:
     """The physical parameters of Table V (Sharp 1971), SI units, SAE axes (module docstring).
@@ -271,20 +394,18 @@ class SharpParameters:
             if why:
                 raise SharpParameterError(f"{f.name} [{SPECS[f.name].unit}] ({SPECS[f.name].meaning}) {why}")
         Fzf, _ = self.static_loads()
-        if Fzf <= 0:
-            raise SharpParameterError(
-                f"the mass centres put {Fzf:.1f} N on the front wheel (k = {self.k:g} m, l_f = {self.l_f:g} m, "
-                f"l_r = {self.l_r:g} m): the combined mass centre must lie between the contact points")
+        why = _load_violation(self, Fzf)
+        if why:
+            raise SharpParameterError(why)
         gap = abs(-self.Z_f - Fzf) / Fzf
         if gap > LOAD_TOLERANCE:
             raise SharpParameterError(
                 f"Z_f = {self.Z_f:g} N disagrees with the static front load of the geometry, {-Fzf:.1f} N, by "
                 f"{100 * gap:.1f} % (more than {100 * LOAD_TOLERANCE:g} %): check the sign (SAE: negative), the "
                 f"unit (N) and the mass-centre positions")
-        if np.linalg.eigvalsh(self.mass_matrix()[2:6, 2:6]).min() <= 0:
-            raise SharpParameterError(
-                "the mass matrix E of these masses and inertias is not positive definite: check I_fx, I_fz, "
-                "I_rx, I_rz, C_rxz (a product of inertia too large for the moments?)")
+        why = _inertia_violation(self.mass_matrix())
+        if why:
+            raise SharpParameterError(why)
 
     @property
     def mass(self) -> float:
@@ -302,46 +423,11 @@ class SharpParameters:
 
     def mass_matrix(self) -> np.ndarray:
         """``E`` of the module docstring (8 x 8, symmetric, identity outside rows/columns 3-6)."""
-        s, c = math.sin(self.eps), math.cos(self.eps)
-        Mf, Mr, j, h, k, e = self.M_f, self.M_r, self.j, self.h, self.k, self.e
-        E = np.eye(8)
-        E[2, 2:6] = (Mf + Mr, Mf * k, Mf * j + Mr * h, Mf * e)
-        E[3, 3:6] = (Mf * k**2 + self.I_rz + self.I_fx * s**2 + self.I_fz * c**2,
-                     Mf * j * k - self.C_rxz + (self.I_fz - self.I_fx) * s * c,
-                     Mf * e * k + self.I_fz * c)
-        E[4, 4:6] = (Mf * j**2 + Mr * h**2 + self.I_rx + self.I_fx * c**2 + self.I_fz * s**2, Mf * e * j + self.I_fz * s)
-        E[5, 5] = self.I_fz + Mf * e**2
-        return np.triu(E) + np.triu(E, 1).T
+        return table_v(self)[0]
 
     def matrices(self, g: float = G) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(E, A0, A1, B)`` of Table V (module docstring), ``A(vx) = A0 + vx A1``."""
-        s, c = math.sin(self.eps), math.cos(self.eps)
-        Mf, Mr, j, h, k, e, eta = self.M_f, self.M_r, self.j, self.h, self.k, self.e, self.eta
-        gf, gr = self.i_fy / self.R_f, self.i_ry / self.R_r  # wheel spin momentum per unit speed [kg m]
-        mh = Mf * j + Mr * h
-        stiff = Mf * e * g - eta * self.Z_f  # a52 = a61 [N m/rad]
-        A0, A1 = np.zeros((8, 8)), np.zeros((8, 8))
-        A0[0, 4] = A0[1, 5] = 1.0
-        A1[2, 3] = -(Mf + Mr)
-        A0[2, 6] = A0[2, 7] = 1.0
-        A1[3, 3:6] = (-Mf * k, gf + gr, gf * s)
-        A0[3, 6:8] = (self.l_f, -self.l_r)
-        A0[4, 0:2] = (mh * g, stiff)
-        A1[4, 3], A1[4, 5] = -(mh + gf + gr), -gf * c
-        A0[5, 0:2] = (stiff, stiff * s)
-        A1[5, 3:5] = (-(Mf * e + gf * s), gf * c)
-        A0[5, 5], A0[5, 6] = -self.K, -eta
-        sf, sr = self.sigma_f, self.sigma_r
-        A1[6, 0:2] = (self.C_f2 / sf, (self.C_f1 * c + self.C_f2 * s) / sf)
-        A0[6, 2:4] = (-self.C_f1 / sf, -self.C_f1 * self.l_f / sf)
-        A0[6, 5] = self.C_f1 * eta / sf
-        A1[6, 6] = -1.0 / sf
-        A1[7, 0] = self.C_r2 / sr
-        A0[7, 2:4] = (-self.C_r1 / sr, self.C_r1 * self.l_r / sr)
-        A1[7, 7] = -1.0 / sr
-        B = np.zeros(8)
-        B[5] = 1.0
-        return self.mass_matrix(), A0, A1, B
+        return table_v(self, g)
 
     def tire_parameters(self) -> TireParameters:
         """The derived :class:`~ptw_env.vehicle.TireParameters` (module docstring)."""
@@ -396,8 +482,8 @@ def sharp_vehicle(
     prov.setdefault("parameters", ", ".join(f"{k} = {v:.6g}" for k, v in asdict(params).items()))
     return Vehicle(name=name, E=E, A0=A0, A1=A1, B=B, mass=params.mass, tires=params.tire_parameters(),
                    vmin=float(vmin), vmax=float(vmax), provenance=prov, steer_lock=float(steer_lock),
-                   design_range=design_range)
+                   design_range=design_range, parameters=params)
 
 
-__all__ = ["LOAD_TOLERANCE", "ParameterSpec", "SPECS", "SharpParameterError", "SharpParameters", "rule_violation",
-           "sharp_vehicle", "static_front_load"]
+__all__ = ["LOAD_TOLERANCE", "ParameterSpec", "SPECS", "SharpParameterError", "SharpParameters", "parameter_batch",
+           "rule_violation", "sharp_vehicle", "static_front_load", "table_v"]

@@ -44,7 +44,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -71,6 +71,16 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.setflags(write=False)
     return a
+
+
+def fastest_rate(E: np.ndarray, A0: np.ndarray, A1: np.ndarray, vmin: float, vmax: float) -> np.ndarray:
+    """``max |eig(E^-1 (A0 + vx A1))|`` [1/s] over 41 speeds of ``[vmin, vmax]`` [m/s] (ends included), per
+    vehicle of a batch (``E``, ``A0``, ``A1`` of shape ``(*batch, 8, 8)``; result of shape ``batch``): the
+    stiffest mode of the linearised model, which sets the integration step (:attr:`Vehicle.fastest_eigenvalue`)."""
+    v = np.linspace(vmin, vmax, 41)
+    Einv = np.linalg.inv(E)[..., None, :, :]
+    A = A0[..., None, :, :] + v[:, None, None] * A1[..., None, :, :]
+    return np.abs(np.linalg.eigvals(Einv @ A)).max(axis=(-1, -2))
 
 
 @dataclass(frozen=True)
@@ -156,6 +166,11 @@ class Vehicle:
         The reference scooter's is 8-33 m/s (the controller issue's wide range);
         a vehicle file gives its own in ``[speed_range] design_vmin, design_vmax``.
         Not part of :meth:`identity`'s hash. See :attr:`control_range`.
+    parameters : ptw_env.sharp.SharpParameters or None
+        The physical parameters the matrices were built from (:func:`ptw_env.sharp.sharp_vehicle`), or
+        ``None`` for a vehicle given as matrix entries (the reference scooter, model.md). Domain
+        randomisation of a vehicle's masses, geometry and inertias (``randomize={"vehicle:M_r": ...}``)
+        needs them. Not part of :meth:`identity`'s hash (the matrices are).
     """
 
     name: str
@@ -170,6 +185,7 @@ class Vehicle:
     provenance: Mapping[str, str] = field(default_factory=dict)
     steer_lock: float = math.pi / 2
     design_range: tuple[float, float] | None = None
+    parameters: Any = None
 
     def __post_init__(self) -> None:
         for nm, shape in (("E", (8, 8)), ("A0", (8, 8)), ("A1", (8, 8)), ("B", (8,))):
@@ -198,7 +214,7 @@ class Vehicle:
         return (
             Vehicle,
             (self.name, self.E, self.A0, self.A1, self.B, self.mass, self.tires, self.vmin, self.vmax,
-             dict(self.provenance), self.steer_lock, self.design_range),
+             dict(self.provenance), self.steer_lock, self.design_range, self.parameters),
         )
 
     @property
@@ -212,8 +228,7 @@ class Vehicle:
         stiffest mode of the linearised vehicle, which sets the integration step
         (:func:`ptw_env.integrate.substeps_for`). Reference scooter: 186 at 40 m/s (the front tire lag,
         ~vx/sigma); robot bicycle: ~100 at every speed (its lateral-tire oscillation)."""
-        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(v))).max()
-                         for v in np.linspace(self.vmin, self.vmax, 41)))
+        return float(fastest_rate(self.E, self.A0, self.A1, self.vmin, self.vmax))
 
     @property
     def steer_torque_scale(self) -> float:

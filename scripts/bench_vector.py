@@ -10,11 +10,19 @@ Prints:
   - the same env through ``gymnasium.vector.SyncVectorEnv`` at N = 16 (gymnasium's generic batching);
   - ``CartPole-v1``'s native vector env at N = 1024;
 * the cost of domain randomisation: N = 1024 with ``randomize=`` (tire peak friction, stiffness, payload,
-  bank, noise scale, gyro bias: one plant per env, compiled again at each reset) against the same model
+  bank, noise scale, gyro bias: one plant per env, the next episodes' compiled in batches) against the same model
   fixed at the middle of the ranges (saturating tires, mu_peak 0.75: a saturating tire costs about a
   quarter more per step than the default linear tire, whether randomised or not, so that is the like-for-like
-  reference), over 2100 steps of full 20 s episodes (each env reset once) and on episodes cut to 100
-  steps (about 10 resets per step, the worst case);
+  reference), over 320 steps with 0, 1 or 10 envs reset before every step through
+  ``reset(options={"reset_mask": ...})`` (the same schedule for both, whatever the episodes do; a 20 s
+  episode at N = 1024 resets 0.5 env a step on average, 10 a step is a policy that falls every 2 s; each
+  such reset also runs one kernel pass, in both); the ends of episodes besides (falls) are printed;
+  also whole 20 s episodes with random torques, with the resets each run had (not like for like: the
+  randomised vehicles fall more often, and a fall is an early reset);
+* the same with the vehicle itself randomised too (``vehicle_scale:`` keys on the ``sharp1971`` vehicle file:
+  rider mass, rear-frame height, roll inertia, caster, front cornering stiffness; the drawn vehicles'
+  matrices built by Table V) besides the six keys, against that vehicle fixed (the substeps of both are
+  printed: a randomisation that can draw a faster vehicle integrates with more);
 * memory per env (bytes of the per-env arrays, :attr:`PTWRollVectorEnv.memory_bytes`).
 
 Target (issue 21): >= 1,000,000 env-steps/s at N = 1024 on 2 cores; randomisation <= 10 % of it.
@@ -50,10 +58,25 @@ RANDOMIZE = {
     "sensor_noise_scale": ("uniform", 0.5, 2.0),
     "gyro_bias:yaw_rate_bias": ("normal", 0.0, 0.005),
 }
+#: Resets before every step in the like-for-like runs (a 20 s episode at N = 1024 averages 0.5 a step).
+RESETS_PER_STEP = (0, 1, 10)
+#: The vehicle's own parameters (Table V names, SI), drawn on top of :data:`RANDOMIZE` on a vehicle file.
+VEHICLE_RANDOMIZE = {
+    "vehicle_scale:M_r": ("uniform", 0.8, 1.3),
+    "vehicle_scale:h": ("uniform", 0.9, 1.1),
+    "vehicle_scale:I_rx": ("uniform", 0.8, 1.2),
+    "vehicle_scale:eps": ("uniform", 0.9, 1.1),
+    "vehicle_scale:C_f1": ("uniform", 0.8, 1.2),
+}
+VEHICLE = "sharp1971"
 
 
-def rate(envs, steps: int, repeats: int, seed: int = 0, scale: float = 0.1) -> float:
-    """Best-of-``repeats`` env-steps/s over ``steps`` steps of random actions (after a warm-up)."""
+def rate(envs, steps: int, repeats: int, seed: int = 0, scale: float = 0.1,
+         resets_per_step: int = 0) -> tuple[float, float]:
+    """Best-of-``repeats`` env-steps/s over ``steps`` steps of random actions (after a warm-up), and the
+    episode ends per step in that run (each an autoreset at the next step). ``resets_per_step``: that many
+    envs (a fixed rotation, the same in every run) reset before each step through
+    ``reset(options={"reset_mask": ...})``, a schedule that does not depend on the episodes."""
     n = envs.num_envs
     rng = np.random.default_rng(seed)
     box = envs.single_action_space
@@ -61,16 +84,27 @@ def rate(envs, steps: int, repeats: int, seed: int = 0, scale: float = 0.1) -> f
         acts = rng.integers(0, box.n, (64, n))
     else:
         acts = (rng.uniform(box.low, box.high, (64, n, 1)) * scale).astype(box.dtype)
+    masks = []
+    for t in range(64 if resets_per_step else 0):
+        m = np.zeros(n, dtype=bool)
+        m[(t * resets_per_step + np.arange(resets_per_step)) % n] = True
+        masks.append(m)
     envs.reset(seed=seed)
     for t in range(5):
         envs.step(acts[t % 64])
-    best = 0.0
+    best, ends = 0.0, 0.0
     for _ in range(repeats):
+        e = 0
         t0 = time.perf_counter()
         for t in range(steps):
-            envs.step(acts[t % 64])
-        best = max(best, n * steps / (time.perf_counter() - t0))
-    return best
+            if masks:
+                envs.reset(options={"reset_mask": masks[t % 64]})
+            _, _, term, trunc, _ = envs.step(acts[t % 64])
+            e += int(np.sum(term | trunc))
+        r = n * steps / (time.perf_counter() - t0)
+        if r > best:
+            best, ends = r, e / steps
+    return best, ends
 
 
 def main() -> None:
@@ -87,20 +121,25 @@ def main() -> None:
     res: dict = {"native": {}, "memory_bytes_per_env": {}, "steps_timed": steps}
     for n in (1, 16, 256, 1024, 4096):
         envs = gym.make_vec("PTWRoll-v0", num_envs=n, vectorization_mode="vector_entry_point")
-        res["native"][n] = rate(envs, steps, repeats)
+        res["native"][n] = rate(envs, steps, repeats)[0]
         res["memory_bytes_per_env"][n] = envs.unwrapped.memory_bytes / n
         envs.close()
     sync = gym.make_vec("PTWRoll-v0", num_envs=16, vectorization_mode="sync")
-    res["sync_16"] = rate(sync, min(steps, 600), repeats)
+    res["sync_16"] = rate(sync, min(steps, 600), repeats)[0]
     cart = gym.make_vec("CartPole-v1", num_envs=1024, vectorization_mode="vector_entry_point")
-    res["cartpole_native_1024"] = rate(cart, steps, repeats)
+    res["cartpole_native_1024"] = rate(cart, steps, repeats)[0]
     base = {"tire_saturation": {"mu_peak": 0.75}}
-    for label, extra in (("full", {}), ("short", {"max_episode_steps": 100})):
+    both = {**RANDOMIZE, **VEHICLE_RANDOMIZE}
+    for label, extra, rnd_spec in (("scooter", {}, RANDOMIZE), ("vehicle", {"vehicle": VEHICLE}, both)):
         fixed = gym.make_vec("PTWRoll-v0", num_envs=1024, vectorization_mode="vector_entry_point", effects=base, **extra)
         rnd = gym.make_vec("PTWRoll-v0", num_envs=1024, vectorization_mode="vector_entry_point", effects=base,
-                           randomize=RANDOMIZE, **extra)
-        res[f"fixed_{label}_1024"] = rate(fixed, steps, repeats)
-        res[f"randomized_{label}_1024"] = rate(rnd, steps, repeats)
+                           randomize=rnd_spec, **extra)
+        res[f"substeps_{label}"] = [fixed.unwrapped.nsub, rnd.unwrapped.nsub]
+        for kind, envs in (("fixed", fixed), ("randomized", rnd)):
+            res[f"{kind}_{label}_episodes"], res[f"{kind}_{label}_ends_per_step"] = rate(envs, steps, repeats)
+            for r in RESETS_PER_STEP:
+                res[f"{kind}_{label}_reset{r}"], res[f"{kind}_{label}_reset{r}_ends"] = rate(
+                    envs, min(steps, 320), repeats, resets_per_step=r)
     n1024 = res["native"][1024]
     print("native vector env (PTWRoll-v0, sensors, reward, cost, autoreset):")
     for n, r in res["native"].items():
@@ -109,11 +148,21 @@ def main() -> None:
           f"-> native at 1024 is {n1024 / res['sync_16']:.1f}x")
     print(f"CartPole-v1 native vector N = 1024:   {res['cartpole_native_1024']:12,.0f} env-steps/s  "
           f"-> native PTW at 1024 is {n1024 / res['cartpole_native_1024']:.3f}x of it")
-    for label, what in (("full", "20 s episodes"), ("short", "100-step episodes")):
-        cost = 1.0 - res[f"randomized_{label}_1024"] / res[f"fixed_{label}_1024"]
-        res[f"randomization_cost_{label}"] = cost
-        print(f"randomisation, N = 1024, {what}: {res[f'randomized_{label}_1024']:,.0f} vs {res[f'fixed_{label}_1024']:,.0f} "
-              f"env-steps/s with the model fixed: costs {100 * cost:.1f} % (target <= 10 %)")
+    for label, what in (("scooter", "reference scooter, 6 effect/sensor keys"),
+                        ("vehicle", f"{VEHICLE}, the 6 keys and 5 vehicle parameters")):
+        nf, nr = res[f"substeps_{label}"]
+        print(f"randomisation, N = 1024, {what} (substeps {nr} vs {nf} fixed):")
+        for r in RESETS_PER_STEP:
+            f, rr = res[f"fixed_{label}_reset{r}"], res[f"randomized_{label}_reset{r}"]
+            cost = 1.0 - rr / f
+            res[f"randomization_cost_{label}_reset{r}"] = cost
+            print(f"  {r:2d} env(s) reset before every step (plus {res[f'randomized_{label}_reset{r}_ends']:.2f} vs "
+                  f"{res[f'fixed_{label}_reset{r}_ends']:.2f} ends a step): {rr:,.0f} vs {f:,.0f} env-steps/s: costs "
+                  f"{100 * cost:.1f} % (target <= 10 %)")
+        ef, er = res[f"fixed_{label}_ends_per_step"], res[f"randomized_{label}_ends_per_step"]
+        print(f"  whole 20 s episodes, random torques (not like for like: {er:.2f} vs {ef:.2f} ends a step, the "
+              f"randomised vehicles fall more): {res[f'randomized_{label}_episodes']:,.0f} vs "
+              f"{res[f'fixed_{label}_episodes']:,.0f} env-steps/s")
     print(f"target >= 1,000,000 env-steps/s at N = 1024: {'met' if n1024 >= 1e6 else 'NOT met'} ({n1024:,.0f})")
     if out is not None:
         out.write_text(json.dumps(res, indent=2) + "\n")

@@ -19,15 +19,18 @@ from ptw_env.randomize import Randomization, RandomizationError
 from ptw_env.vector import PTWRollVectorEnv
 
 
-def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_scale: float) -> tuple[float, int, int]:
-    """Step a vector env and n single envs with the same random actions (single env i reset with seed
-    seed + i, then without a seed at each episode end, as NEXT_STEP autoreset does). Returns the largest
-    difference of observation, reward, state and cost, the number of episode ends and of steps compared."""
+def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_scale: float,
+                          check: tuple[int, ...] | None = None) -> tuple[float, int, int]:
+    """Step a vector env and single envs with the same random actions (single env i reset with seed
+    seed + i, then without a seed at each episode end, as NEXT_STEP autoreset does), for the envs ``check``
+    (default all n). Returns the largest difference of observation, reward, state and cost, the number of
+    episode ends and of steps compared."""
     venv = PTWRollVectorEnv(num_envs=n, **kwargs)
-    singles = [PTWRollEnv(**kwargs) for _ in range(n)]
+    check = tuple(range(n)) if check is None else check
+    singles = {i: PTWRollEnv(**kwargs) for i in check}
     obs, info = venv.reset(seed=seed)
     diff = 0.0
-    for i, e in enumerate(singles):
+    for i, e in singles.items():
         o, inf = e.reset(seed=seed + i)
         diff = max(diff, float(np.max(np.abs(o - obs[i]))), float(np.max(np.abs(inf["state"] - info["state"][i]))))
     rng = np.random.default_rng(seed)
@@ -36,7 +39,7 @@ def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_sc
     for _ in range(steps):
         a = (rng.uniform(0.0, 1.0, (n, 1)) * action_scale).astype(np.float32)  # leans one way: falls
         obs, rew, term, trunc, info = venv.step(a)
-        for i, e in enumerate(singles):
+        for i, e in singles.items():
             if done[i]:
                 o, inf = e.reset()
                 r, te, tr, cost = 0.0, False, False, 0.0
@@ -53,7 +56,7 @@ def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_sc
     return diff, ends, steps
 
 
-@pytest.mark.parametrize("case", ["default", "effects_actuator", "randomized", "rides"])
+@pytest.mark.parametrize("case", ["default", "effects_actuator", "randomized", "rides", "vehicle"])
 def test_env_i_equals_single_env_through_resets(case):
     """Same seeds, same actions: env i of the vector env and a single env agree to round-off, including
     across episode ends (falls under random torques) and autoresets."""
@@ -71,10 +74,46 @@ def test_env_i_equals_single_env_through_resets(case):
                                  "sensor_bias:ay": ("uniform", -0.1, 0.1)})
     elif case == "rides":  # a ride drawn per episode from a pool, mirrored half of the time
         kwargs.update(scenario_pool=["slalom", "double_lane_change"], mirror=True)
+    elif case == "vehicle":  # the vehicle's own masses, geometry and inertias drawn, on saturating tires
+        kwargs.update(vehicle="sharp1971", effects={"tire_saturation": {"mu_peak": 0.7}},
+                      randomize={"vehicle:M_r": ("uniform", 150.0, 300.0), "vehicle_scale:I_rx": ("uniform", 0.8, 1.2),
+                                 "vehicle:h": ("normal", 0.6, 0.05, 0.5, 0.7), "vehicle_scale:C_f1": ("uniform", 0.7, 1.3)})
+        scale = 1.2 * ptw_env.load_vehicle("sharp1971").torque_ratio * 60.0
     diff, ends, _ = replay_against_single(kwargs, n=3, steps=600, seed=11, action_scale=scale)
     assert ends >= 3, "the replay must cross episode ends to test the autoreset"
     # compiled batched plants (randomised) differ from one-by-one ones only by round-off
-    assert diff <= (1e-9 if case == "randomized" else 0.0)
+    assert diff <= (1e-9 if case in ("randomized", "vehicle") else 0.0)
+
+
+def test_randomised_next_episodes_compiled_in_batches_keep_env_i_equal_to_a_single_env():
+    """More envs than one compile batch (COMPILE_BATCH): each env's next episode is drawn at its reset and
+    compiled later with other envs' (or at once when it is needed first); a few envs are replayed against
+    single envs through their falls, and a seeded partial reset (reset_mask) starts those envs afresh."""
+    from ptw_env.vector import COMPILE_BATCH
+
+    n = COMPILE_BATCH + 44
+    kwargs = {"scenario": "slalom", "speed_kmh": 40, "vehicle": "sharp1971",
+              "randomize": {"tire_saturation:mu_peak": ("uniform", 0.5, 1.0), "vehicle_scale:M_r": ("uniform", 0.8, 1.3),
+                            "sensor_noise_scale": ("uniform", 0.5, 2.0), "road_bank:bank_rad": ("normal", 0, 0.01)}}
+    scale = 1.2 * ptw_env.load_vehicle("sharp1971").torque_ratio * 60.0
+    diff, ends, _ = replay_against_single(kwargs, n=n, steps=500, seed=3, action_scale=scale, check=(0, 141, n - 1))
+    assert ends >= 6, "each replayed env must cross several episode ends"
+    assert diff <= 1e-9, diff
+    # a seeded partial reset: the masked envs draw afresh from their new generators, the others go on
+    venv = PTWRollVectorEnv(num_envs=n, **kwargs)
+    venv.reset(seed=0)
+    for _ in range(3):
+        venv.step(np.zeros((n, 1), dtype=np.float32))
+    mask = np.zeros(n, dtype=bool)
+    mask[[5, n - 2]] = True
+    seeds = [None] * n
+    seeds[5], seeds[n - 2] = 1000, 1001
+    obs, info = venv.reset(seed=seeds, options={"reset_mask": mask})
+    for i, sd in ((5, 1000), (n - 2, 1001)):
+        o, inf = PTWRollEnv(**kwargs).reset(seed=sd)
+        assert np.array_equal(o, obs[i])
+        assert inf["randomized"] == {k: v[i] for k, v in info["randomized"].items()}
+    assert info["state"][6][0] != 0.0 and venv.step_index[6] == 3  # untouched
 
 
 def test_a_mirrored_ride_is_the_mirror_image():
@@ -247,6 +286,90 @@ def test_randomization_draws_and_plant():
     single = PTWRollEnv(randomize=r)
     _, sinfo = single.reset(seed=i)
     assert sinfo["randomized"]["tire_saturation:mu_peak"] == mu[i]
+
+
+def test_vehicle_randomization_draws_the_vehicle_of_those_parameters():
+    """``vehicle:PARAM`` / ``vehicle_scale:PARAM``: env i's plant is the plant of the vehicle file with the drawn
+    parameters put in by hand (the scalar path: SharpParameters -> sharp_vehicle -> compile_plant), with Z_f
+    following the statics; the draws lie in their ranges; axle loads (hence saturation forces) follow the masses."""
+    from dataclasses import replace
+
+    from ptw_env.sharp import sharp_vehicle, static_front_load
+    from ptw_env.vehicle_files import load_parameters
+
+    r = {"vehicle:M_r": ("uniform", 60.0, 120.0), "vehicle:k": ("uniform", 0.35, 0.55),
+         "vehicle_scale:I_rz": ("loguniform", 0.5, 2.0), "vehicle:eps": ("normal", 0.45, 0.05, 0.35, 0.55)}
+    eff = {"tire_saturation": {"mu_peak": 0.8}}
+    venv = PTWRollVectorEnv(num_envs=64, vehicle="cossalter_sport_touring", effects=eff, randomize=r,
+                            speed_kmh=60)
+    _, info = venv.reset(seed=5)
+    d = info["randomized"]
+    assert 60.0 <= d["vehicle:M_r"].min() and d["vehicle:M_r"].max() <= 120.0
+    assert 0.5 <= d["vehicle_scale:I_rz"].min() and d["vehicle_scale:I_rz"].max() <= 2.0
+    p = load_parameters("cossalter_sport_touring")
+    nominal = venv.template.vehicle
+    for i in (0, 17, 63):
+        new = dict(M_r=d["vehicle:M_r"][i], k=d["vehicle:k"][i], I_rz=p.I_rz * d["vehicle_scale:I_rz"][i],
+                   eps=d["vehicle:eps"][i])
+        fzf = static_front_load(p.M_f, new["M_r"], new["k"], p.l_f, p.l_r)
+        q = replace(p, **new, Z_f=p.Z_f * fzf / p.static_loads()[0])
+        v = sharp_vehicle(q, "by hand", nominal.vmin, nominal.vmax)
+        ref = ptw_env.compile_plant(v, eff)
+        W, s, fmax, bank = venv.plant_of(i)
+        np.testing.assert_allclose(W, ref.W, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(fmax, 0.8 * np.array([v.tires.Fzf, v.tires.Fzr]), rtol=1e-12)
+        assert q.static_loads()[0] == pytest.approx(-q.Z_f * p.static_loads()[0] / -p.Z_f, rel=1e-12)
+    # the heaviest rider puts the most weight on the rear wheel
+    heavy, light = int(np.argmax(d["vehicle:M_r"])), int(np.argmin(d["vehicle:M_r"]))
+    assert venv.plant_of(heavy)[2][1] > venv.plant_of(light)[2][1]
+    # a single env seeded 17 draws env 17's vehicle
+    _, sinfo = PTWRollEnv(vehicle="cossalter_sport_touring", effects=eff, randomize=r, speed_kmh=60).reset(seed=5 + 17)
+    assert sinfo["randomized"]["vehicle:M_r"] == d["vehicle:M_r"][17]
+
+
+def test_vehicle_randomization_sizes_the_step_for_the_fastest_drawn_vehicle():
+    """Short relaxation lengths make faster tire lags (vx/sigma): the substeps follow the fastest corner,
+    computed here from vehicles built by hand."""
+    from dataclasses import replace
+
+    from ptw_env.integrate import substeps_for
+    from ptw_env.sharp import sharp_vehicle
+    from ptw_env.vehicle_files import load_parameters
+
+    p = load_parameters("sharp1971")
+    nominal = ptw_env.load_vehicle("sharp1971")
+    r = {"vehicle:sigma_f": ("uniform", 0.05, 0.3), "vehicle_scale:sigma_r": ("uniform", 0.25, 1.0)}
+    env = PTWRollEnv(vehicle="sharp1971", randomize=r)
+    rates = [sharp_vehicle(replace(p, sigma_f=sf, sigma_r=p.sigma_r * sr), "x", nominal.vmin, nominal.vmax).fastest_eigenvalue
+             for sf in (0.05, 0.3) for sr in (0.25, 1.0)]
+    assert max(rates) > 2 * nominal.fastest_eigenvalue
+    assert env.substeps == substeps_for(env.dt, vehicle=nominal, extra_rate=max(rates)) > PTWRollEnv(vehicle="sharp1971").substeps
+
+
+def test_vehicle_randomization_errors_name_the_key_and_the_problem():
+    cases = [
+        (None, {"vehicle:M_r": ("uniform", 150, 300)}, "given as matrix entries"),
+        ("sharp1971", {"vehicle:Z_f": -1000.0}, "Z_f follows the statics"),
+        ("sharp1971", {"vehicle:M_x": 1.0}, "unknown vehicle parameter in 'vehicle:M_x'"),
+        ("sharp1971", {"vehicle:M_r": ("normal", 200, 10)}, "needs finite bounds"),
+        ("sharp1971", {"vehicle:M_r": ("uniform", 0.0, 10.0)}, "M_r .* must be > 0, got 0"),
+        ("sharp1971", {"vehicle:k": ("uniform", -5.0, 1.0)}, "mass centre must lie between the contact points"),
+        ("sharp1971", {"vehicle:C_rxz": ("uniform", -50.0, 50.0)}, "not positive definite"),
+        ("sharp1971", {"vehicle:eps": ("uniform", 0.2, 1.6)}, "vehicle:eps.*physical range"),
+        ("sharp1971", {"vehicle:M_r": 100.0, "vehicle_scale:M_r": 1.0}, "not both"),
+        ("sharp1971", {"vehicle:k": ("uniform", 0.5, 20.0)}, "on the rear .*between the contact points"),
+    ]
+    for vehicle, r, msg in cases:
+        with pytest.raises(EnvConfigError, match=msg):
+            PTWRollEnv(vehicle=vehicle, randomize=r)
+    # a vehicle whose matrices were edited after it was built from its parameters
+    from dataclasses import replace
+
+    v = ptw_env.load_vehicle("sharp1971")
+    A0 = v.A0.copy()
+    A0[5, 5] -= 3.0
+    with pytest.raises(EnvConfigError, match="not those of its physical parameters"):
+        PTWRollEnv(vehicle=replace(v, A0=A0), randomize={"vehicle_scale:M_r": ("uniform", 0.9, 1.1)})
 
 
 def test_randomization_errors_name_the_key():
