@@ -42,31 +42,31 @@ UNITS: dict[str, str] = {
 _CODE = {"delta": DELTA, "delta_rate": DELTA_DOT, "yaw_rate": R, "roll_rate": PHI_DOT, "ay": -1, "roll": PHI}
 
 
+@njit(cache=True)
+def _channel(X, i, t, c, mass, k):  # steps 1-2 of the module docstring, one reading
+    if c >= 0:
+        return X[i, t, c]
+    ay = (X[i, t, FYF] + X[i, t, FYR]) / mass
+    if k != 0.0:
+        phi = X[i, t, PHI]
+        ay = ay + k * (ay * np.cos(phi) - G * np.sin(phi) - ay)
+    return ay
+
+
 @njit(cache=True, parallel=True)
-def _read(X, mass, gain, codes, Y):  # steps 1-2 of the module docstring
+def _read(X, mass, gain, codes, n, f, bias, Y):
+    """Steps 1-4 of the module docstring in one pass: ``Y[i, t, j] = y_j(t - n_i) + f_i (y_j(t - n_i - 1) -
+    y_j(t - n_i)) + bias[i, j]``, a time before the first sample read as the first sample."""
     N, T = X.shape[0], X.shape[1]
     for i in prange(N):
         for t in range(T):
+            t0 = max(t - n[i], 0)
+            t1 = max(t - n[i] - 1, 0)
             for j in range(codes.shape[0]):
-                c = codes[j]
-                if c >= 0:
-                    Y[i, t, j] = X[i, t, c]
-                else:
-                    ay = (X[i, t, FYF] + X[i, t, FYR]) / mass[i]
-                    k = gain[i]
-                    if k != 0.0:
-                        phi = X[i, t, PHI]
-                        ay = ay + k * (ay * np.cos(phi) - G * np.sin(phi) - ay)
-                    Y[i, t, j] = ay
-
-
-def _shift(Y: np.ndarray, s: int) -> np.ndarray:
-    """``Y[:, k - s]`` along axis 1, the first sample standing in for ``k < s``."""
-    if s <= 0:
-        return Y
-    T = Y.shape[1]
-    s = min(s, T - 1)
-    return np.concatenate([np.repeat(Y[:, :1], s, axis=1), Y[:, : T - s]], axis=1)
+                v = _channel(X, i, t0, codes[j], mass[i], gain[i])
+                if f[i] != 0.0:
+                    v = v + f[i] * (_channel(X, i, t1, codes[j], mass[i], gain[i]) - v)
+                Y[i, t, j] = v + bias[i, j]
 
 
 def sensor_outputs(
@@ -110,26 +110,17 @@ def sensor_outputs(
         return np.broadcast_to(np.asarray(v, dtype=float), (N,))[:, None]
 
     codes = np.array([_CODE[c] for c in channels], dtype=np.int64)
-    Y = np.empty((N, T, len(channels)))
-    _read(X, np.ascontiguousarray(col(mass)[:, 0]), np.ascontiguousarray(col(gravity_gain)[:, 0]), codes, Y)
     d = np.broadcast_to(np.asarray(delay_s, dtype=float), (N,)) / dt
-    if np.any(d != 0.0):
-        d = np.where(np.abs(d - np.round(d)) < 1e-9, np.round(d), d)
-        n = np.floor(d).astype(int)
-        f = (d - n)[:, None, None]
-        out = np.empty_like(Y)
-        for s in np.unique(n):  # one slice per whole-sample shift (a handful of distinct values)
-            rows = np.flatnonzero(n == s)
-            Ys = Y[rows]
-            new = _shift(Ys, s)
-            old = _shift(Ys, s + 1)
-            out[rows] = new + f[rows] * (old - new)
-        Y = out
+    d = np.where(np.abs(d - np.round(d)) < 1e-9, np.round(d), d)
+    n = np.floor(d).astype(np.int64)
+    f = np.ascontiguousarray(d - n)
+    bias = np.zeros((N, len(channels)))
     for name, b in (("yaw_rate", yaw_rate_bias), ("roll_rate", roll_rate_bias)):
         if name in channels:
-            bb = col(b)
-            if np.any(bb != 0.0):
-                Y[..., channels.index(name)] += bb
+            bias[:, channels.index(name)] = col(b)[:, 0]
+    Y = np.empty((N, T, len(channels)))
+    _read(X, np.ascontiguousarray(col(mass)[:, 0]), np.ascontiguousarray(col(gravity_gain)[:, 0]), codes,
+          np.ascontiguousarray(n), f, bias, Y)
     return Y
 
 

@@ -86,6 +86,7 @@ import math
 import time
 
 import numpy as np
+from numba import njit
 
 from ptw_env.effects import DYNAMIC_CAUSES, Effects
 from ptw_env.dynamics import Plant, add_generalised_forces, compile_plant
@@ -123,6 +124,23 @@ DAMPING = 0.1
 #: Output magnitude taken as a diverged replay (any channel, physical units); such outputs are clipped
 #: to it, a finite misfit far beyond any real one.
 _DIVERGED = 1e6
+
+
+@njit(cache=True)
+def _below(Y, bound):
+    """``(Y.shape[1], Y.shape[2])`` flags of a 4-D array: every ``|Y[k, a, b, c]| < bound`` (NaN is not), without
+    the temporaries of ``np.all(np.abs(Y) < bound, axis=(0, 3))``."""
+    K, A, B, C = Y.shape
+    out = np.ones((A, B), dtype=np.bool_)
+    for k in range(K):
+        for a in range(A):
+            for b in range(B):
+                if out[a, b]:
+                    for c in range(C):
+                        if not abs(Y[k, a, b, c]) < bound:
+                            out[a, b] = False
+                            break
+    return out
 
 _SENSOR_ARGS = {
     ("gyro_bias", "yaw_rate_bias"): "yaw_rate_bias",
@@ -266,7 +284,7 @@ class Replay:
                     Y[..., j] += col[:, None]
                 else:
                     Y[..., j] *= 1.0 + col[:, None]
-        if not np.all(np.abs(Y) < _DIVERGED):  # a candidate that diverges: a huge but finite misfit
+        if not _below(Y.reshape(1, 1, 1, -1), _DIVERGED)[0, 0]:  # a candidate that diverges: a huge but finite misfit
             Y = np.clip(np.nan_to_num(Y, nan=_DIVERGED, posinf=_DIVERGED, neginf=-_DIVERGED), -_DIVERGED, _DIVERGED)
         return Y.reshape(m, Ws, w.n, len(w.channels))
 
@@ -322,14 +340,16 @@ class Replay:
         Y = self.outputs(np.tile(Z, (NX + 1, 1)), widx, X0.reshape((NX + 1) * m, Ws, NX)).reshape(NX + 1, m, Ws, -1)
         wt = self.weight[widx].reshape(1, Ws, -1)
         r0 = (self.win.Y[widx].reshape(1, Ws, -1) - Y[0]) * wt
-        # weighted sensitivity per typical-size correction
-        J = (Y[1:] - Y[0][None]) * wt[None] * (scale / step)[:, None, None, None]  # (NX, m, Ws, nC)
         # a diverged replay (outputs clipped to a huge misfit) tells nothing about the initial state
-        diverged = ~np.all(np.abs(Y) < _DIVERGED, axis=(0, 3))  # (m, Ws)
-        J = np.where(diverged[None, :, :, None], 0.0, J)
-        JtJ = np.einsum("imwk,jmwk->mwij", J, J)
-        Ainv = np.linalg.inv(JtJ + DAMPING**2 * np.eye(NX))
-        pinv = scale[None, None, :, None] * np.einsum("mwij,jmwk->mwik", Ainv, J)
+        diverged = ~_below(Y, _DIVERGED)  # (m, Ws)
+        # weighted sensitivity per typical-size correction, laid out (m, Ws, NX, nC) for batched matmul
+        Yt = Y.transpose(1, 2, 0, 3)
+        J = Yt[:, :, 1:] - Yt[:, :, :1]
+        J *= wt[:, :, None, :] * (scale / step)[None, None, :, None]
+        if diverged.any():
+            J[diverged] = 0.0
+        Ainv = np.linalg.inv(J @ J.swapaxes(-1, -2) + DAMPING**2 * np.eye(NX))
+        pinv = scale[None, None, :, None] * (Ainv @ J)
         # prior pull towards the measured start state: - lambda^2 D A^-1 D^-1 (x - x_guess)
         prior = DAMPING**2 * scale[:, None] * Ainv / scale[None, :]
         return r0.reshape(m, Ws, self.win.n, -1), (pinv, prior)
