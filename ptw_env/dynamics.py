@@ -290,19 +290,19 @@ def linearise(plant: Plant | Vehicle | None, vx: float, x: np.ndarray | None = N
 
     For the nominal plant at ``x = 0`` this is ``(E^-1 A(vx), E^-1 B)`` of
     model.md up to rounding (the sines have unit slope at 0); a test checks it.
+    A batched plant gives one pair per plant: ``A`` of shape ``(*batch, 8, 8)``, ``B`` ``(*batch, 8, 1)``.
     """
     plant = compile_plant(plant) if not isinstance(plant, Plant) else plant
-    if plant.batch_shape:
-        raise ValueError("linearise takes an unbatched plant")
-    x0 = np.zeros(8) if x is None else np.asarray(x, dtype=float)
+    bshape = plant.batch_shape
+    x0 = np.zeros(bshape + (8,)) if x is None else np.array(np.broadcast_to(np.asarray(x, dtype=float), bshape + (8,)))
     n = 8
-    A = np.empty((n, n))
+    A = np.empty(bshape + (n, n))
     for j in range(n):
-        h = eps * max(1.0, abs(x0[j]))
-        xp = x0.copy(); xp[j] += h
-        xm = x0.copy(); xm[j] -= h
-        A[:, j] = (plant.rhs(xp, tau, vx) - plant.rhs(xm, tau, vx)) / (2 * h)
-    Bm = ((plant.rhs(x0, tau + 1.0, vx) - plant.rhs(x0, tau - 1.0, vx)) / 2.0)[:, None]
+        h = eps * np.maximum(1.0, np.abs(x0[..., j]))
+        xp = x0.copy(); xp[..., j] += h
+        xm = x0.copy(); xm[..., j] -= h
+        A[..., :, j] = (plant.rhs(xp, tau, vx) - plant.rhs(xm, tau, vx)) / (2 * h)[..., None]
+    Bm = ((plant.rhs(x0, tau + 1.0, vx) - plant.rhs(x0, tau - 1.0, vx)) / 2.0)[..., None]
     return A, Bm
 
 

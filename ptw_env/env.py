@@ -16,7 +16,7 @@ from .effects import Effects, as_effects
 from .episode import (OBS_REF, OBS_ROLL, OBS_VX, REASONS, SCENARIO_END, Actuator, CostConfig, EpisodeConfigError,
                       actuate, command, end_code, grip_utilisation, observe_into, roll_reward, step_cost)
 from .friction import FrictionPlants, FrictionSchedule
-from .integrate import Stepper, plant_rate, substeps_for
+from .integrate import Stepper, substeps_for
 from .randomize import Randomization, RandomizationError
 from .rider import DEFAULT_TAU_MAX
 from .scenarios import Scenario, ScenarioError, make_scenario
@@ -136,7 +136,7 @@ class PTWRollEnv(gym.Env):
     The plant is the reference scooter of ``shared/spec/model.md`` (Sharp-type
     4-DoF lateral model, first-order tire relaxation, sine gravity/trail
     terms), optionally with the effects of ``shared/spec/effects.md``,
-    integrated with RK4 (2.5 ms substeps) while the action and the speed are
+    integrated with RK4 (substeps of at most 2.5 ms, fewer for a stiffer model: :attr:`substeps`) while the action and the speed are
     held over each control period ``dt`` = 10 ms. The forward speed follows
     the scenario's profile (exogenous, time-varying); the agent sees only
     noisy sensors (``shared/spec/logs.md``) and the roll reference
@@ -258,6 +258,12 @@ class PTWRollEnv(gym.Env):
         Domain randomisation (:mod:`ptw_env.randomize`): effect parameters, generalised forces, the
         vehicle's own physical parameters (a vehicle file's), sensor noise and bias drawn from seeded
         distributions for every episode; ``info["randomized"]`` holds the episode's values.
+    substeps : int, optional
+        At least this many RK4 substeps per control period. Default: as many as the vehicle's fastest mode
+        needs, and with ``randomize=`` as many as the fastest plant it can draw needs
+        (:func:`ptw_env.integrate.substeps_for`, :meth:`ptw_env.randomize.Randomization.stiffest_rate`);
+        :attr:`substeps` says how many are used. E.g. to compare a fixed model with a randomised one at the
+        same integration step. Not with ``friction=``.
     render_mode : {"rgb_array", "human", None}
 
     Version history
@@ -306,6 +312,7 @@ class PTWRollEnv(gym.Env):
         scenario_pool: Sequence[str | Scenario] | None = None,
         mirror: bool = False,
         render_mode: str | None = None,
+        substeps: int | None = None,
     ) -> None:
         super().__init__()
         for name, v in (("dt", dt), ("tau_max", 1.0 if tau_max is None else tau_max),
@@ -395,15 +402,21 @@ class PTWRollEnv(gym.Env):
         self.plant = compile_plant(self.vehicle, self.effects.dynamic)
         self._stepper = Stepper(self.plant, self.dt)
         if self.randomization is not None and self.randomization.changes_plant:
-            # substeps for the stiffest plant the randomisation can draw (e.g. Coulomb steering friction, the
-            # fastest of the vehicles it draws)
+            # substeps for the stiffest plant the randomisation can draw (e.g. Coulomb steering friction, a short
+            # relaxation length, the fastest of the vehicles it draws)
             try:
-                stiff = self.randomization.plant(self.vehicle, self.effects, self.randomization.extreme_samples())
+                rate = self.randomization.stiffest_rate(self.vehicle, self.effects)
             except RandomizationError as exc:
                 raise EnvConfigError(str(exc)) from None
-            nsub = max(self._stepper.nsub, substeps_for(self.dt, vehicle=self.vehicle,
-                                                        extra_rate=max(plant_rate(stiff), vehicle_rate)))
+            nsub = max(self._stepper.nsub, substeps_for(self.dt, vehicle=self.vehicle, extra_rate=max(rate, vehicle_rate)))
             self._stepper = Stepper(self.plant, self.dt, substeps=nsub)
+        if substeps is not None:
+            if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+                raise EnvConfigError(f"substeps must be a positive whole number, got {substeps!r}")
+            if friction is not None:
+                raise EnvConfigError("substeps= and friction= together are not supported (the friction schedule's "
+                                     "plants size their own substeps)")
+            self._stepper = Stepper(self.plant, self.dt, substeps=max(self._stepper.nsub, int(substeps)))
         self.friction = friction
         self._friction = None if friction is None else FrictionPlants(friction, self.vehicle, self.effects, self.dt)
         self._sensors = SensorModel(self.sensor_config, self.effects.sensor, dt=self.dt)

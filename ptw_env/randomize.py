@@ -31,7 +31,14 @@ A description maps a *key* to a *distribution*. Keys:
   matrix is quadratic in the mass-centre positions, so a draw inside the box could in principle still fail
   its check: that reset then raises one :class:`RandomizationError` naming the keys. A normal on a vehicle
   key needs finite bounds (``("normal", mean, std, low, high)``). The environment's integration step is sized
-  for the fastest linearised mode among the corners.
+  for the fastest linearised mode among those corners and the plants of :meth:`Randomization.stiffest_rate`.
+
+The RK4 substeps of an environment with ``randomize=`` keep ``|lambda h|`` of the fastest drawable plant
+inside :data:`ptw_env.integrate.MAX_LAMBDA_H` (:meth:`Randomization.stiffest_rate`): a randomised short
+relaxation length or Coulomb friction integrates with more substeps, for every episode (one step for all the
+envs of a vector env); so does a draw only slightly faster than the nominal vehicle when that one sits at the
+edge of a substep count (the reference scooter's 185.6 1/s at 40 m/s takes 4 substeps, a tire stiffness
+drawn 1.2x makes 188.4 and 5).
 * ``"sensor_noise_scale"``: a factor on every channel's noise standard deviation.
 * ``"sensor_bias:CHANNEL"``: an offset [channel unit] added to that channel's bias
   (:data:`ptw_env.sensors.CHANNELS`).
@@ -70,7 +77,7 @@ from typing import Any, Mapping
 import numpy as np
 from scipy.special import ndtri
 
-from .dynamics import FORCE_FEATURES, FORCE_ROWS, Plant, add_generalised_forces, compile_plant
+from .dynamics import FORCE_FEATURES, FORCE_ROWS, Plant, add_generalised_forces, compile_plant, linearise
 from .effects import DYNAMIC_CAUSES, VOCABULARY, Effects
 from .sensors import CHANNELS
 from .sharp import SPECS, SharpParameterError, parameter_batch, table_v
@@ -116,6 +123,15 @@ class Distribution:
             z = ndtri(np.clip(u, 1e-300, None))  # u = 0 would be -inf
             return np.clip(self.a + self.b * z, self.low, self.high)
         return np.asarray(self.values)[np.minimum((u * len(self.values)).astype(np.int64), len(self.values) - 1)]
+
+    @property
+    def tails(self) -> tuple[float, float]:
+        """The ends of what is drawn in practice: :attr:`support`, a normal's cut at 5 standard deviations
+        (inside its bounds, also when its mean lies outside them)."""
+        lo, hi = self.support
+        if self.kind == "normal":
+            lo, hi = min(max(lo, self.a - 5.0 * self.b), hi), max(min(hi, self.a + 5.0 * self.b), lo)
+        return lo, hi
 
     @property
     def support(self) -> tuple[float, float]:
@@ -394,16 +410,34 @@ class Randomization:
         return add_generalised_forces(plant, forces) if forces else plant
 
     def extreme_samples(self) -> dict[str, float]:
-        """Each key at the end of its support farthest from 0 (a normal's unclipped tail at 5 standard
-        deviations): the stiffest model it draws, which the environment sizes its RK4 substeps for (e.g.
-        a Coulomb-friction force)."""
+        """Each key at the end of its range farthest from 0 (:attr:`Distribution.tails`): where
+        :meth:`stiffest_rate` starts (it then moves each key to each of its ends)."""
         out = {}
         for k, d in self.dists.items():
-            lo, hi = d.support
-            if d.kind == "normal":  # an unclipped tail: 5 standard deviations
-                lo, hi = max(lo, d.a - 5.0 * d.b), min(hi, d.a + 5.0 * d.b)
+            lo, hi = d.tails
             out[k] = hi if abs(hi) >= abs(lo) else lo
         return out
+
+    def stiffest_rate(self, vehicle: Any, base: Effects) -> float:
+        """Fastest rate [1/s] of the plants at the ends of the ranges, which the environment sizes its RK4
+        substeps for: :meth:`extreme_samples`, and each key at each end of its support with the others there
+        (which end is the stiffer depends on the key: a short relaxation length makes a fast tire lag, a
+        large Coulomb friction a fast steer mode). Per plant, the largest ``|eig|`` of the plant linearised at
+        the upright (:func:`ptw_env.dynamics.linearise`; Coulomb friction's slope ``Tc / w`` included) at the
+        vehicle's lowest, middle and highest speed. These are 1 + 2k plants, not every combination of ends:
+        two keys whose stiffer ends are both the ends nearer 0 are not combined (the vehicle keys' corners
+        are, :meth:`check_vehicle`)."""
+        extreme = self.extreme_samples()
+        rows = [extreme]
+        for k, d in self.dists.items():
+            lo, hi = d.tails
+            rows += [{**extreme, k: lo}, {**extreme, k: hi}]
+        plant = self.plant(vehicle, base, {k: np.array([r[k] for r in rows]) for k in self.dists})
+        rate = 0.0
+        for vx in (vehicle.vmin, 0.5 * (vehicle.vmin + vehicle.vmax), vehicle.vmax):
+            A, _ = linearise(plant, vx)
+            rate = max(rate, float(np.abs(np.linalg.eigvals(A)).max()))
+        return rate
 
     def sample(self, rng: np.random.Generator) -> dict[str, float]:
         """One episode's values: one call ``rng.random(len(keys))``, mapped by each key's inverse transform

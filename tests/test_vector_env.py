@@ -346,6 +346,22 @@ def test_vehicle_randomization_sizes_the_step_for_the_fastest_drawn_vehicle():
     assert env.substeps == substeps_for(env.dt, vehicle=nominal, extra_rate=max(rates)) > PTWRollEnv(vehicle="sharp1971").substeps
 
 
+def test_randomised_effects_size_the_step_for_the_stiffest_plant():
+    """A short relaxation length makes a fast tire lag (vx / sigma): the env's substeps keep |lambda h| of the
+    stiffest drawable plant (sigma = 0.02 m at 40 m/s) inside the RK4 accuracy bound, computed here from that
+    plant's own eigenvalues; ``substeps=`` raises the count, never lowers it."""
+    from ptw_env.integrate import MAX_LAMBDA_H
+
+    env = PTWRollEnv(randomize={"relaxation_length:sigma_m": ("uniform", 0.02, 0.2)})
+    A, _ = ptw_env.linearise(ptw_env.compile_plant(None, {"relaxation_length": {"sigma_m": 0.02}}), env.vehicle.vmax)
+    lam = float(np.abs(np.linalg.eigvals(A)).max())
+    assert lam > 5 * env.vehicle.fastest_eigenvalue
+    assert lam * env.dt / env.substeps <= MAX_LAMBDA_H < lam * env.dt / (env.substeps - 1)
+    assert PTWRollEnv(substeps=9).substeps == 9 and PTWRollEnv(substeps=1).substeps == PTWRollEnv().substeps
+    with pytest.raises(EnvConfigError, match="substeps must be a positive whole number"):
+        PTWRollEnv(substeps=0)
+
+
 def test_vehicle_randomization_errors_name_the_key_and_the_problem():
     cases = [
         (None, {"vehicle:M_r": ("uniform", 150, 300)}, "given as matrix entries"),

@@ -112,6 +112,8 @@ def sensor_outputs(
     codes = np.array([_CODE[c] for c in channels], dtype=np.int64)
     d = np.broadcast_to(np.asarray(delay_s, dtype=float), (N,)) / dt
     d = np.where(np.abs(d - np.round(d)) < 1e-9, np.round(d), d)
+    if not np.all(d >= 0.0):
+        raise ValueError(f"delay_s must be >= 0 seconds, got {delay_s!r}")
     n = np.floor(d).astype(np.int64)
     f = np.ascontiguousarray(d - n)
     bias = np.zeros((N, len(channels)))
