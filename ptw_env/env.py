@@ -400,7 +400,7 @@ class PTWRollEnv(gym.Env):
         self._next_sample: dict[str, float] | None = None
 
         self.plant = compile_plant(self.vehicle, self.effects.dynamic)
-        self._stepper = Stepper(self.plant, self.dt)
+        self._stepper = Stepper(self.plant, self.dt)  # sized for this plant (a fixed effect may be the stiffest mode)
         if self.randomization is not None and self.randomization.changes_plant:
             # substeps for the stiffest plant the randomisation can draw (e.g. Coulomb steering friction, a short
             # relaxation length, the fastest of the vehicles it draws)

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from . import kernels
-from .dynamics import Plant, compile_plant
+from .dynamics import Plant, compile_plant, linearise
 from .vehicle import Vehicle
 
 #: Largest internal RK4 step [s].
@@ -50,6 +50,19 @@ def plant_rate(plant: Plant) -> float:
     ``delta_dot = 0``, i.e. a steer mode of rate ``|d delta_dot' / d delta_dot| = |W[5, coulomb]| / w``."""
     col = plant.W[..., 5, -1]
     return float(np.max(np.abs(col))) / kernels.COULOMB_WIDTH if col.size else 0.0
+
+
+def linear_rate(plant: Plant) -> np.ndarray:
+    """Largest ``|eig|`` [1/s] of ``plant`` linearised at the upright (:func:`ptw_env.dynamics.linearise`; a
+    Coulomb force's slope ``Tc / w`` included) at its vehicle's lowest, middle and highest speed, one per plant
+    of a batch: the stiffest mode of a plant whose effects (a short relaxation length, a stiff damper) may be
+    faster than its vehicle's (:attr:`ptw_env.vehicle.Vehicle.fastest_eigenvalue`)."""
+    v = plant.vehicle
+    rate = np.zeros(plant.batch_shape)
+    for vx in (v.vmin, 0.5 * (v.vmin + v.vmax), v.vmax):
+        A, _ = linearise(plant, vx)
+        rate = np.maximum(rate, np.abs(np.linalg.eigvals(A)).max(axis=-1))
+    return rate
 
 
 def _as_plant(vehicle: Vehicle | Plant | None, effects) -> Plant:
@@ -170,7 +183,11 @@ def simulate(
 class Stepper:
     """Advance one vehicle by one control period; what :class:`~ptw_env.env.PTWRollEnv` uses.
 
-    Keeps the compiled plant's arrays so that a step costs one kernel call.
+    Keeps the compiled plant's arrays so that a step costs one kernel call. ``substeps`` default: sized for the
+    plant's own fastest linearised mode (:func:`linear_rate`: its effects, e.g. a short relaxation length, may
+    be faster than its vehicle) and its vehicle's (:func:`substeps_for`). (:func:`simulate` still sizes from
+    the vehicle and Coulomb friction only, :func:`plant_rate`: the ride logs and the diagnosis replays keep
+    their step.)
     """
 
     __slots__ = ("plant", "dt", "nsub", "_W", "_inv_sigma", "_fmax", "_bank")
@@ -180,8 +197,8 @@ class Stepper:
             raise SimulationInputError("Stepper takes an unbatched plant")
         self.plant = plant
         self.dt = float(dt)
-        self.nsub = (substeps_for(dt, vehicle=plant.vehicle, extra_rate=plant_rate(plant)) if substeps is None
-                     else int(substeps))
+        self.nsub = (substeps_for(dt, vehicle=plant.vehicle, extra_rate=float(linear_rate(plant)))
+                     if substeps is None else int(substeps))
         W, s, f, b = plant.flat()
         self._W, self._inv_sigma, self._fmax, self._bank = W[0], s[0], f[0], float(b[0])
 

@@ -77,8 +77,9 @@ from typing import Any, Mapping
 import numpy as np
 from scipy.special import ndtri
 
-from .dynamics import FORCE_FEATURES, FORCE_ROWS, Plant, add_generalised_forces, compile_plant, linearise
+from .dynamics import FORCE_FEATURES, FORCE_ROWS, Plant, add_generalised_forces, compile_plant
 from .effects import DYNAMIC_CAUSES, VOCABULARY, Effects
+from .integrate import linear_rate
 from .sensors import CHANNELS
 from .sharp import SPECS, SharpParameterError, parameter_batch, table_v
 from .vehicle import fastest_rate
@@ -433,11 +434,7 @@ class Randomization:
             lo, hi = d.tails
             rows += [{**extreme, k: lo}, {**extreme, k: hi}]
         plant = self.plant(vehicle, base, {k: np.array([r[k] for r in rows]) for k in self.dists})
-        rate = 0.0
-        for vx in (vehicle.vmin, 0.5 * (vehicle.vmin + vehicle.vmax), vehicle.vmax):
-            A, _ = linearise(plant, vx)
-            rate = max(rate, float(np.abs(np.linalg.eigvals(A)).max()))
-        return rate
+        return float(np.max(linear_rate(plant)))
 
     def sample(self, rng: np.random.Generator) -> dict[str, float]:
         """One episode's values: one call ``rng.random(len(keys))``, mapped by each key's inverse transform

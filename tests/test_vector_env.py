@@ -349,7 +349,7 @@ def test_vehicle_randomization_sizes_the_step_for_the_fastest_drawn_vehicle():
 def test_randomised_effects_size_the_step_for_the_stiffest_plant():
     """A short relaxation length makes a fast tire lag (vx / sigma): the env's substeps keep |lambda h| of the
     stiffest drawable plant (sigma = 0.02 m at 40 m/s) inside the RK4 accuracy bound, computed here from that
-    plant's own eigenvalues; ``substeps=`` raises the count, never lowers it."""
+    plant's own eigenvalues, and so do a fixed effect's; ``substeps=`` raises the count, never lowers it."""
     from ptw_env.integrate import MAX_LAMBDA_H
 
     env = PTWRollEnv(randomize={"relaxation_length:sigma_m": ("uniform", 0.02, 0.2)})
@@ -357,6 +357,8 @@ def test_randomised_effects_size_the_step_for_the_stiffest_plant():
     lam = float(np.abs(np.linalg.eigvals(A)).max())
     assert lam > 5 * env.vehicle.fastest_eigenvalue
     assert lam * env.dt / env.substeps <= MAX_LAMBDA_H < lam * env.dt / (env.substeps - 1)
+    # the same plant as a fixed effect gets the same step (it used to keep the vehicle's 4 substeps)
+    assert PTWRollEnv(effects={"relaxation_length": {"sigma_m": 0.02}}).substeps == env.substeps
     assert PTWRollEnv(substeps=9).substeps == 9 and PTWRollEnv(substeps=1).substeps == PTWRollEnv().substeps
     with pytest.raises(EnvConfigError, match="substeps must be a positive whole number"):
         PTWRollEnv(substeps=0)
