@@ -32,16 +32,16 @@ A description maps a *key* to a *distribution*. Keys:
   its check: that reset then raises one :class:`RandomizationError` naming the keys. A normal on a vehicle
   key needs finite bounds (``("normal", mean, std, low, high)``). The environment's integration step is sized
   for the fastest linearised mode among those corners and the plants of :meth:`Randomization.stiffest_rate`.
+* ``"sensor_noise_scale"``: a factor on every channel's noise standard deviation.
+* ``"sensor_bias:CHANNEL"``: an offset [channel unit] added to that channel's bias
+  (:data:`ptw_env.sensors.CHANNELS`).
 
 The RK4 substeps of an environment with ``randomize=`` keep ``|lambda h|`` of the fastest drawable plant
 inside :data:`ptw_env.integrate.MAX_LAMBDA_H` (:meth:`Randomization.stiffest_rate`): a randomised short
 relaxation length or Coulomb friction integrates with more substeps, for every episode (one step for all the
 envs of a vector env); so does a draw only slightly faster than the nominal vehicle when that one sits at the
 edge of a substep count (the reference scooter's 185.6 1/s at 40 m/s takes 4 substeps, a tire stiffness
-drawn 1.2x makes 188.4 and 5).
-* ``"sensor_noise_scale"``: a factor on every channel's noise standard deviation.
-* ``"sensor_bias:CHANNEL"``: an offset [channel unit] added to that channel's bias
-  (:data:`ptw_env.sensors.CHANNELS`).
+drawn 0.8x makes 188.4 and 5).
 
 Distributions: a number (fixed), ``("uniform", low, high)``, ``("loguniform", low, high)``,
 ``("normal", mean, std)`` or ``("normal", mean, std, low, high)`` (clipped to ``[low, high]``; ``None`` for
