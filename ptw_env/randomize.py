@@ -82,7 +82,6 @@ from .effects import DYNAMIC_CAUSES, VOCABULARY, Effects
 from .integrate import linear_rate
 from .sensors import CHANNELS
 from .sharp import SPECS, SharpParameterError, parameter_batch, table_v
-from .vehicle import fastest_rate
 
 DISTRIBUTIONS = ("fixed", "uniform", "loguniform", "normal", "choice")
 #: keys besides "CAUSE:PARAM"
@@ -99,6 +98,23 @@ class RandomizationError(ValueError):
     """A bad ``randomize=`` description (names the key and the value)."""
 
 
+def inverse_transform(kind: str, a: Any, b: Any, low: Any, high: Any, u: np.ndarray) -> np.ndarray:
+    """Draws of a ``fixed`` (``a``), ``uniform`` (``a + (b - a) u``), ``loguniform`` (``exp`` of that in log
+    space) or ``normal`` (``a + b Phi^-1(u)`` clipped to ``[low, high]``) distribution from uniform numbers ``u``
+    in [0, 1); the parameters are numbers, or arrays broadcasting with ``u`` (several keys of one kind at once,
+    :meth:`Randomization.sample_table`). The one copy of these formulas."""
+    if kind == "fixed":
+        return np.broadcast_to(np.asarray(a, dtype=float), np.shape(u)).copy()
+    if kind == "uniform":
+        return a + (b - a) * u
+    if kind == "loguniform":
+        la, lb = np.log(a), np.log(b)
+        return np.exp(la + (lb - la) * u)
+    if kind == "normal":
+        return np.clip(a + b * ndtri(np.clip(u, 1e-300, None)), low, high)  # u = 0 would be -inf
+    raise ValueError(f"no inverse transform for a {kind!r} distribution")
+
+
 @dataclass(frozen=True)
 class Distribution:
     """One seeded distribution (see the module docstring); ``low``/``high`` bound every draw."""
@@ -111,19 +127,12 @@ class Distribution:
     values: tuple[float, ...] = ()
 
     def from_uniform(self, u: np.ndarray) -> np.ndarray:
-        """Draws by inverse transform of uniform numbers ``u`` in [0, 1) (any shape): ``low + (high - low) u``,
-        ``exp`` of that in log space, ``mean + std Phi^-1(u)`` clipped, or ``values[floor(n u)]``."""
+        """Draws by inverse transform of uniform numbers ``u`` in [0, 1) (any shape): :func:`inverse_transform`,
+        or ``values[floor(n u)]`` for a choice."""
         u = np.asarray(u, dtype=float)
-        if self.kind == "fixed":
-            return np.full(u.shape, self.a)
-        if self.kind == "uniform":
-            return self.a + (self.b - self.a) * u
-        if self.kind == "loguniform":
-            return np.exp(math.log(self.a) + (math.log(self.b) - math.log(self.a)) * u)
-        if self.kind == "normal":
-            z = ndtri(np.clip(u, 1e-300, None))  # u = 0 would be -inf
-            return np.clip(self.a + self.b * z, self.low, self.high)
-        return np.asarray(self.values)[np.minimum((u * len(self.values)).astype(np.int64), len(self.values) - 1)]
+        if self.kind == "choice":
+            return np.asarray(self.values)[np.minimum((u * len(self.values)).astype(np.int64), len(self.values) - 1)]
+        return inverse_transform(self.kind, self.a, self.b, self.low, self.high, u)
 
     @property
     def tails(self) -> tuple[float, float]:
@@ -332,6 +341,9 @@ class Randomization:
         out = {}
         for k, v in samples.items():
             kind, _, param = k.partition(":")
+            if kind in ("vehicle", "vehicle_scale") and getattr(vehicle, "parameters", None) is None:
+                raise RandomizationError(f"randomize: {k} draws a physical parameter of the vehicle, but "
+                                         f"{vehicle.name} has none (matrix entries only)")
             if kind == "vehicle":
                 out[param] = v
             elif kind == "vehicle_scale":
@@ -341,7 +353,7 @@ class Randomization:
     def check_vehicle(self, vehicle: Any) -> float:
         """Check every vehicle the description can draw from ``vehicle`` (module docstring: the corners of
         the supports of the vehicle keys) and return their fastest linearised mode [1/s]
-        (:func:`ptw_env.vehicle.fastest_rate` over the vehicle's speed range; 0 without vehicle keys).
+        (:func:`ptw_env.integrate.linear_rate` of the corner vehicles' plants; 0 without vehicle keys).
 
         Raises
         ------
@@ -382,11 +394,11 @@ class Randomization:
             corners = np.array([lo, hi] + flips).T
         samples = dict(zip(keys, corners))
         try:
-            E, A0, A1, _, _ = parameter_batch(params, self.vehicle_values(vehicle, samples))
+            model = parameter_batch(params, self.vehicle_values(vehicle, samples))
         except SharpParameterError as exc:
             raise RandomizationError(f"randomize: {', '.join(keys)} can draw a vehicle that is not one (at the "
                                      f"ends of their ranges): {exc}") from None
-        return float(np.max(fastest_rate(E, A0, A1, vehicle.vmin, vehicle.vmax)))
+        return float(np.max(linear_rate(compile_plant(vehicle, model=model))))
 
     def forces(self, samples: Mapping[str, Any]) -> list[tuple[str, str, Any]]:
         """The sampled generalised forces ``(equation, feature, coefficient)``."""
@@ -449,24 +461,15 @@ class Randomization:
 
     def sample_table(self, rngs: "list[np.random.Generator]") -> np.ndarray:
         """:meth:`sample_many` as one array ``(len(rngs), len(keys))``, columns in key order: the inverse
-        transforms of :meth:`Distribution.from_uniform` applied to all the keys of a kind at once (the same
-        arithmetic element by element)."""
+        transforms (:func:`inverse_transform`) applied to all the keys of a kind at once."""
         u = np.array([rng.random(len(self.dists)) for rng in rngs]).reshape(len(rngs), len(self.dists))
         out = np.empty_like(u)
         for kind, (cols, a, b, lo, hi) in self._by_kind.items():
-            x = u[:, cols]
-            if kind == "fixed":
-                out[:, cols] = a
-            elif kind == "uniform":
-                out[:, cols] = a + (b - a) * x
-            elif kind == "loguniform":
-                la, lb = (np.array([math.log(v) for v in end]) for end in (a, b))  # as from_uniform: math.log
-                out[:, cols] = np.exp(la + (lb - la) * x)
-            elif kind == "normal":
-                out[:, cols] = np.clip(a + b * ndtri(np.clip(x, 1e-300, None)), lo, hi)
-            else:
+            if kind == "choice":
                 for j in cols:
                     out[:, j] = self.dists[list(self.dists)[j]].from_uniform(u[:, j])
+            else:
+                out[:, cols] = inverse_transform(kind, a, b, lo, hi, u[:, cols])
         return out
 
     def effects(self, base: Effects, samples: Mapping[str, Any]) -> Effects:

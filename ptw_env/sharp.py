@@ -276,17 +276,16 @@ def rule_violation(value: float, rule: str) -> str | None:
     return None
 
 
-def _load_violation(p: Any, Fzf: Any, g: float = G) -> str | None:
-    """Why the static loads (``Fzf`` [N], a number or an array, one per vehicle, and ``Fzr = M g - Fzf``) are
+def _load_violation(p: Any, Fzf: Any, Fzr: Any) -> str | None:
+    """Why the static loads ``Fzf``, ``Fzr`` [N] (numbers, or arrays of one shape: one per vehicle) are
     impossible, or None: each wheel must carry a positive load."""
-    Fzr = (np.asarray(p.M_f) + np.asarray(p.M_r)) * g - np.asarray(Fzf)
-    bad = np.flatnonzero((np.ravel(Fzf) <= 0) | (np.ravel(np.broadcast_to(Fzr, np.shape(Fzf))) <= 0))
+    Fzf, Fzr = np.ravel(Fzf), np.ravel(Fzr)
+    bad = np.flatnonzero((Fzf <= 0) | (Fzr <= 0))
     if not bad.size:
         return None
     i = bad[0]
     k, lf, lr = (float(np.ravel(np.broadcast_to(getattr(p, n), np.shape(Fzf)))[i]) for n in ("k", "l_f", "l_r"))
-    front = float(np.ravel(Fzf)[i])
-    rear = float(np.ravel(np.broadcast_to(Fzr, np.shape(Fzf)))[i])
+    front, rear = float(Fzf[i]), float(Fzr[i])
     return (f"the mass centres put {front:.1f} N on the front wheel and {rear:.1f} N on the rear (k = {k:g} m, "
             f"l_f = {lf:g} m, l_r = {lr:g} m): the combined mass centre must lie between the contact points")
 
@@ -333,7 +332,9 @@ def parameter_batch(params: "SharpParameters", values: Mapping[str, Any],
     p = SimpleNamespace(**base)
     Fzf = np.broadcast_to(static_front_load(p.M_f, p.M_r, p.k, p.l_f, p.l_r, g),
                           np.broadcast_shapes(*(np.shape(v) for v in values.values())))  # the rest are numbers
-    why = _load_violation(p, Fzf, g)
+    mass = np.broadcast_to(p.M_f + p.M_r, Fzf.shape)
+    Fzr = mass * g - Fzf  # as SharpParameters.static_loads
+    why = _load_violation(p, Fzf, Fzr)
     if why:
         raise SharpParameterError(why)
     p.Z_f = params.Z_f * Fzf / params.static_loads(g)[0]
@@ -341,8 +342,7 @@ def parameter_batch(params: "SharpParameters", values: Mapping[str, Any],
     why = _inertia_violation(E)
     if why:
         raise SharpParameterError(why)
-    mass = np.broadcast_to(p.M_f + p.M_r, Fzf.shape)
-    return E, A0, A1, mass, np.stack([Fzf, mass * g - Fzf], axis=-1)
+    return E, A0, A1, mass, np.stack([Fzf, Fzr], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -393,8 +393,8 @@ class SharpParameters:
             why = rule_violation(getattr(self, f.name), SPECS[f.name].rule)
             if why:
                 raise SharpParameterError(f"{f.name} [{SPECS[f.name].unit}] ({SPECS[f.name].meaning}) {why}")
-        Fzf, _ = self.static_loads()
-        why = _load_violation(self, Fzf)
+        Fzf, Fzr = self.static_loads()
+        why = _load_violation(self, Fzf, Fzr)
         if why:
             raise SharpParameterError(why)
         gap = abs(-self.Z_f - Fzf) / Fzf

@@ -60,7 +60,7 @@ from .kernels import advance, scratch
 from .sensors import CHANNELS, NOISE_BLOCK, draw_noise, sense_into, sensor_terms
 
 #: Envs whose next episode's randomised plant and sensors are compiled together (module docstring): numpy's
-#: cost per env of a batch falls from ~50 us at 16 envs to ~10 at 64 and ~3-5 at 256 (measured).
+#: per-call overhead is shared by the batch (scripts/bench_vector.py measures what a reset then costs).
 COMPILE_BATCH = 256
 
 

@@ -73,16 +73,6 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def fastest_rate(E: np.ndarray, A0: np.ndarray, A1: np.ndarray, vmin: float, vmax: float) -> np.ndarray:
-    """``max |eig(E^-1 (A0 + vx A1))|`` [1/s] over 41 speeds of ``[vmin, vmax]`` [m/s] (ends included), per
-    vehicle of a batch (``E``, ``A0``, ``A1`` of shape ``(*batch, 8, 8)``; result of shape ``batch``): the
-    stiffest mode of the linearised model, which sets the integration step (:attr:`Vehicle.fastest_eigenvalue`)."""
-    v = np.linspace(vmin, vmax, 41)
-    Einv = np.linalg.inv(E)[..., None, :, :]
-    A = A0[..., None, :, :] + v[:, None, None] * A1[..., None, :, :]
-    return np.abs(np.linalg.eigvals(Einv @ A)).max(axis=(-1, -2))
-
-
 @dataclass(frozen=True)
 class TireParameters:
     """Tire data derived from the printed rows 7-8 (model.md, "Derived nominal tire parameters").
@@ -228,7 +218,8 @@ class Vehicle:
         stiffest mode of the linearised vehicle, which sets the integration step
         (:func:`ptw_env.integrate.substeps_for`). Reference scooter: 186 at 40 m/s (the front tire lag,
         ~vx/sigma); robot bicycle: ~100 at every speed (its lateral-tire oscillation)."""
-        return float(fastest_rate(self.E, self.A0, self.A1, self.vmin, self.vmax))
+        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(v))).max()
+                         for v in np.linspace(self.vmin, self.vmax, 41)))
 
     @property
     def steer_torque_scale(self) -> float:

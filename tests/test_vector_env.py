@@ -388,6 +388,12 @@ def test_vehicle_randomization_errors_name_the_key_and_the_problem():
     A0[5, 5] -= 3.0
     with pytest.raises(EnvConfigError, match="not those of its physical parameters"):
         PTWRollEnv(vehicle=replace(v, A0=A0), randomize={"vehicle_scale:M_r": ("uniform", 0.9, 1.1)})
+    # the library call without an environment: one clear error, not an AttributeError
+    from ptw_env.effects import Effects
+
+    with pytest.raises(RandomizationError, match="vehicle_scale:M_r draws a physical parameter"):
+        Randomization({"vehicle_scale:M_r": ("uniform", 0.9, 1.1)}).plant(ptw_env.REFERENCE_SCOOTER, Effects(),
+                                                                           {"vehicle_scale:M_r": 1.0})
 
 
 def test_randomization_errors_name_the_key():
