@@ -5,15 +5,11 @@ corners shows a saturation. Where the held-out data separate them the diagnosis 
 one with its size; where they do not, the report says "ambiguous between A and B" with both fitted
 sizes (:func:`assist.diagnose.selection.ambiguity`).
 
-Measured (45 s rides, reference sensors, noise on): slalom, seed 61, mu_peak 0.6 (tires at up to
+Measured (45 s rides, reference sensors, noise on, seed 61, mu_peak 0.6): slalom (tires at up to
 0.37 of their load sideways) named ``tire_saturation`` 0.604, held-out improvement 0.093 noise
-variances per value against 0.018 for the stiffness change (0.92/0.93): separated. Constant radius
-(a steady turn at 28 m/s), seeds 61 / 63 / 64 (``python scripts/eval_saturation.py``, stored in
-docs/results/diagnose_saturation.txt; the tests below ride seed 61): mu_peak 0.8 named ``tire_saturation`` 0.852 / 0.879 /
-0.855, separated; mu_peak 1.5 ambiguous (margins -0.026 / -0.028 / -0.025, saturation fitted 1.83 /
-1.78 / 1.78, the mimicking stiffness 0.85-0.86 / 0.88); a stiffness change of 0.8 named
-``tire_stiffness`` 0.80-0.81, separated. The rule is also tested on held-out evidence built by hand
-(below), which is what it reads.
+variances per value against 0.018 for the stiffness change (0.92/0.93): separated. On this
+project's own plant no ride of the five scenarios at seeds 61-62 came out ambiguous; the rule is
+therefore also tested on held-out evidence built by hand (below), which is what it reads.
 """
 
 from __future__ import annotations
@@ -21,11 +17,6 @@ from __future__ import annotations
 import numpy as np
 
 from assist.diagnose import diagnose, selection
-from assist.diagnose.diagnosis import replay_windows
-from assist.diagnose.params import CAUSES, NOMINAL
-from assist.diagnose.replay import Replay, window_costs
-from ptw_env.sensors import DEFAULT_NOISE_STD
-from ptw_env.vehicle import REFERENCE_SCOOTER, VY
 from test_diagnose import ride
 
 
@@ -36,75 +27,6 @@ def test_a_ride_that_uses_the_grip_separates_saturation_from_stiffness():
     assert rep.ambiguous is None and "ambiguous" not in rep.to_json()["verdict"]
     imp = {"+".join(c["cause"] for c in h["causes"]): h["improvement"] for h in rep.hypotheses}
     assert imp["tire_saturation"] - imp["tire_stiffness"] >= selection.MIN_IMPROVEMENT, imp
-
-
-def test_the_sideslip_start_finds_the_lateral_velocity_no_sensor_reads():
-    """Replay.start under the true model of the mu_peak 0.8 turn: in the windows of the turn (true
-    |vy| > 0.5 m/s, none is measured) it starts within 0.1 m/s of the true vy, where the measured start
-    says 0; fitted from vy = 0 alone those windows diverge (cost above 1e6 noise variances, measured
-    5e8-1e9), fitted from both starts (Replay.fit_states, the diagnosis's path) all but two of the 14
-    come to within 3 noise variances per scored value (measured 1.2-2.3; the other two 4.0 and 42:
-    two Gauss-Newton steps do not always reach the noise). On the straight lead-in (true |vy| < 0.01 m/s) the
-    start keeps vy = 0."""
-    log = ride("constant_radius", {"tire_saturation": {"mu_peak": 0.8}}, seed=61)
-    win, _ = replay_windows(log, REFERENCE_SCOOTER)
-    rp = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in win.channels]))
-    Z = NOMINAL[None].copy()
-    Z[0, CAUSES["tire_saturation"][0]] = 1.0 / 0.8  # the search variable is 1 / mu_peak
-    allw = np.arange(len(win))
-    vy_true = np.asarray(log["x_vy"])[win.starts]
-    xs = rp.start(Z, allw)[0]
-    turn, straight = np.abs(vy_true) > 0.5, np.abs(vy_true) < 0.01
-    assert turn.sum() >= 5 and straight.sum() >= 2, vy_true
-    assert np.all(np.abs(xs[turn, VY] - vy_true[turn]) < 0.1), (xs[turn, VY], vy_true[turn])
-    assert np.all(xs[straight, VY] == rp.x_guess[straight, VY])
-    x0 = rp.x_guess[None]
-    r0, P = rp.linearise(Z, allw, x0)
-    r_guess, _ = rp.gauss_newton(Z, allw, x0, r0, P, 2)
-    r_both, _ = rp.fit_states(Z, allw)
-    counts = win.score.sum(axis=(1, 2))
-    assert np.all(window_costs(r_guess)[0, turn] > 1e6)
-    per_value = window_costs(r_both)[0, turn] / counts[turn]
-    assert np.sum(per_value < 3.0) >= turn.sum() - 2, per_value  # measured: 12 of 14, 1.2-2.3 (one 4.0, one 42)
-
-
-def _sizes(rep) -> dict[str, dict]:
-    return {"+".join(c["cause"] for c in h["causes"]): h for h in rep.hypotheses}
-
-
-def test_a_steady_turn_near_the_limit_is_named_saturation():
-    """Constant-radius ride, 28 m/s, mu_peak 0.8 (tires at ~0.7 of their peak in the turn): the force
-    has stopped growing with slip, and the saturation wins over a stiffness change by more than the
-    separation margin. (Before each model's start took its own sideslip, ``Replay.start``, this ride
-    was named tire_stiffness 0.77/0.80: every window of the turn diverged from ``vy = 0``.)"""
-    rep = diagnose(ride("constant_radius", {"tire_saturation": {"mu_peak": 0.8}}, seed=61), pairs=False,
-                   progress=False)
-    assert rep.causes[0]["cause"] == "tire_saturation", rep.causes
-    assert abs(rep.causes[0]["params"]["mu_peak"] - 0.8) <= 0.25 * 0.8, rep.causes
-    assert rep.ambiguous is None, rep.ambiguous
-    h = _sizes(rep)
-    assert h["tire_saturation"]["improvement"] - h["tire_stiffness"]["improvement"] >= selection.MIN_IMPROVEMENT
-
-
-def test_a_mild_steady_turn_is_ambiguous_between_saturation_and_stiffness():
-    """The same turn on a grippier tire (mu_peak 1.5: ~0.37 of the peak used) stays on the nearly
-    straight part of the tanh: a stiffness 0.86/0.88 mimics it, the held-out data do not separate
-    them, and the report says so with both fitted sizes. The same ride with a stiffness change of
-    0.8 (no saturation) is named and separated."""
-    rep = diagnose(ride("constant_radius", {"tire_saturation": {"mu_peak": 1.5}}, seed=61), pairs=False,
-                   progress=False)
-    assert rep.ambiguous is not None, [(h["causes"], h["improvement"]) for h in rep.hypotheses[:3]]
-    between = {c[0]["cause"]: c[0]["params"] for c in rep.ambiguous["between"]}
-    assert set(between) == {"tire_saturation", "tire_stiffness"}
-    assert abs(between["tire_saturation"]["mu_peak"] - 1.5) <= 0.25 * 1.5, between
-    assert 0.7 <= between["tire_stiffness"]["front_scale"] <= 0.95, between  # the mimicking stiffness
-    assert rep.ambiguous["separation_margin"] < 0
-    assert rep.to_json()["verdict"]["ambiguous"]["between"] == rep.ambiguous["between"]
-    assert "ambiguous between" in rep.summary()
-    rep = diagnose(ride("constant_radius", {"tire_stiffness": {"front_scale": 0.8, "rear_scale": 0.8}}, seed=61),
-                   pairs=False, progress=False)
-    assert rep.causes[0]["cause"] == "tire_stiffness" and rep.ambiguous is None, (rep.causes, rep.ambiguous)
-    assert abs(rep.causes[0]["params"]["front_scale"] - 0.8) <= 0.05, rep.causes
 
 
 def _ranked(S, counts):
