@@ -136,7 +136,7 @@ class PTWRollEnv(gym.Env):
     The plant is the reference scooter of ``shared/spec/model.md`` (Sharp-type
     4-DoF lateral model, first-order tire relaxation, sine gravity/trail
     terms), optionally with the effects of ``shared/spec/effects.md``,
-    integrated with RK4 (substeps of at most 2.5 ms, fewer for a stiffer model: :attr:`substeps`) while the action and the speed are
+    integrated with RK4 (substeps of at most 2.5 ms, shorter for a stiffer model: :attr:`substeps`) while the action and the speed are
     held over each control period ``dt`` = 10 ms. The forward speed follows
     the scenario's profile (exogenous, time-varying); the agent sees only
     noisy sensors (``shared/spec/logs.md``) and the roll reference
