@@ -206,7 +206,8 @@ class HypothesisFitter:
 
         Each evaluated model gets its own initial-state sensitivity (:meth:`Replay.linearise`)
         and :data:`STATE_STEPS` Gauss-Newton steps from the measured start states
-        (:attr:`Replay.x_guess`). The Jacobian is variable projection by forward differences:
+        (:attr:`Replay.x_guess`, and the model's own sideslip where the measured force asks for
+        one: :meth:`Replay.fit_from_starts`). The Jacobian is variable projection by forward differences:
         every perturbed model re-fits the initial states by one Gauss-Newton step from the
         unperturbed optimum, and so does the unperturbed model itself (the difference then
         holds only the parameter's effect, not the last step's), all in one batched simulation.
@@ -234,9 +235,7 @@ class HypothesisFitter:
             if key not in cache:
                 cache.clear()
                 Z = full(q[None])
-                x = rp.x_guess[widx][None]
-                r0, P = rp.linearise(Z, widx, x)
-                r, x = rp.gauss_newton(Z, widx, x, r0, P, STATE_STEPS)
+                r, x, P = rp.fit_from_starts(Z, widx, STATE_STEPS)
                 if x_alt is not None:
                     xa = np.asarray(x_alt, dtype=float)[None]
                     r0a, Pa = rp.linearise(Z, widx, xa)
@@ -293,9 +292,7 @@ class HypothesisFitter:
         own = set(fit.hypothesis.idx)
         others = [i for i in range(N_TABLE) if i not in own]  # the table's causes (closures: extension.py)
         scale, upper = self.params.scale, self.params.upper
-        x = rp.x_guess[widx][None]
-        r0, P = rp.linearise(z[None], widx, x)
-        _, xb = rp.gauss_newton(z[None], widx, x, r0, P, STATE_STEPS)
+        _, xb, P = rp.fit_from_starts(z[None], widx, STATE_STEPS)
         Q = np.repeat(z[None], len(others) + 1, axis=0)  # row 0: unmoved, same procedure
         for j, i in enumerate(others):
             Q[j + 1, i] += scale[i] if z[i] + scale[i] <= upper[i] else -scale[i]

@@ -53,7 +53,12 @@ computed by finite differences for each model evaluated (``NX`` extra
 trajectories per window in the same batched call); each step costs one
 batched simulation. Starting from the measured start state,
 :data:`STATE_STEPS` steps converge (the map from ``p_w`` to the outputs is
-nearly linear: the nonlinearity is ``sin(phi)`` and tire saturation).
+nearly linear: the nonlinearity is ``sin(phi)`` and tire saturation). The one
+state no sensor reads is the lateral velocity (0 in the measured start); near the
+friction limit a saturating model's replay from ``vy = 0`` diverges, so where the
+measured lateral force asks for a sideslip under the model, the fit is made again
+from that sideslip and the better fit kept (:meth:`Replay.start`,
+:meth:`Replay.fit_from_starts`).
 
 Integration: :func:`ptw_env.integrate.simulate` (RK4, inputs held over each
 sample) with as many substeps as keep ``|lambda h| <= EIG_STEP`` for the
@@ -91,7 +96,7 @@ from numba import njit
 from ptw_env.effects import DYNAMIC_CAUSES, Effects
 from ptw_env.dynamics import Plant, add_generalised_forces, compile_plant
 from ptw_env.integrate import plant_rate, simulate
-from ptw_env.vehicle import FYF, FYR, G, REFERENCE_SCOOTER, Vehicle
+from ptw_env.vehicle import FYF, FYR, G, REFERENCE_SCOOTER, VY, Vehicle
 
 from .data import Windows
 from .measurement import sensor_outputs
@@ -120,6 +125,16 @@ _RHO_GRID = 41
 #: size (:data:`STATE_SCALE`) in a direction that changes the weighted residual norm by much less
 #: than this is not made (an initial state the scored outputs cannot see).
 DAMPING = 0.1
+
+#: Sideslip angles [rad] scanned for the start of each window's lateral velocity (:meth:`Replay.start`):
+#: a coarse grid over the range of tire slip angles (beyond the force peak of any tire), then a fine
+#: one around its best point.
+SLIP_SCAN = np.linspace(-0.2, 0.2, 41)
+SLIP_FINE = np.linspace(-0.01, 0.01, 21)
+_ZERO_SLIP = int(np.flatnonzero(SLIP_SCAN == 0.0)[0])
+#: The start's sideslip moves from 0 only where the measured force asks for it by more than this many
+#: standard deviations of its noise (:meth:`Replay.start`).
+SLIP_SIGNIFICANCE = 3.0
 
 #: Output magnitude taken as a diverged replay (any channel, physical units); such outputs are clipped
 #: to it, a finite misfit far beyond any real one.
@@ -234,6 +249,28 @@ class Replay:
         """
         Z = np.atleast_2d(np.asarray(Z, dtype=float))
         m, Ws = Z.shape[0], len(widx)
+        w = self.win
+        X, rows, dyn, sens, chan_terms = self._simulate(Z, widx, x0, w.n)
+        mass = self.vehicle.mass + (rows[:, CAUSES["payload"][0]] if "payload" in dyn else 0.0)
+        Y = sensor_outputs(X, mass, w.dt, channels=w.channels, **sens)
+        for term, col in chan_terms:
+            ch = term.equation.split(":", 1)[1]
+            if ch in w.channels:
+                j = w.channels.index(ch)
+                if term.feature == "offset":
+                    Y[..., j] += col[:, None]
+                else:
+                    Y[..., j] *= 1.0 + col[:, None]
+        if not _below(Y.reshape(1, 1, 1, -1), _DIVERGED)[0, 0]:  # a candidate that diverges: a huge but finite misfit
+            Y = np.clip(np.nan_to_num(Y, nan=_DIVERGED, posinf=_DIVERGED, neginf=-_DIVERGED), -_DIVERGED, _DIVERGED)
+        return Y.reshape(m, Ws, w.n, len(w.channels))
+
+    def _simulate(self, Z: np.ndarray, widx: np.ndarray, x0: np.ndarray, samples: int) -> tuple:
+        """The states of the first ``samples`` samples of windows ``widx`` for each row of ``Z``
+        (shape (m Ws, samples, 8)), with what :meth:`outputs` needs to read the channels: each
+        simulated vehicle's parameter row, the dynamic effects, the sensor arguments and the
+        closure terms of the channels."""
+        m, Ws = Z.shape[0], len(widx)
         N = m * Ws
         rows = np.repeat(Z, Ws, axis=0)  # (N, P): parameter row of each simulated vehicle
         dyn: dict[str, dict[str, np.ndarray]] = {}
@@ -255,10 +292,11 @@ class Replay:
             else:
                 sens[_SENSOR_ARGS[(p.cause, p.name)]] = col
         w = self.win
-        tau = np.broadcast_to(w.tau[widx][None], (m, Ws, w.n - 1)).reshape(N, w.n - 1)
+        k = samples - 1
+        tau = np.broadcast_to(w.tau[widx][None, :, :k], (m, Ws, k)).reshape(N, k)
         x0 = np.reshape(x0, (N, NX))
-        ramp = np.linspace(-0.5, 0.5, w.n - 1)[None, :]
-        vx = np.broadcast_to(w.vx[widx][None], (m, Ws, w.n - 1)).reshape(N, w.n - 1)
+        ramp = np.linspace(-0.5, 0.5, w.n - 1)[None, :k]
+        vx = np.broadcast_to(w.vx[widx][None, :, :k], (m, Ws, k)).reshape(N, k)
         vx = np.clip(vx + x0[:, 8:9] + x0[:, 9:10] * ramp, self.vehicle.vmin, self.vehicle.vmax)
         eff = Effects(dyn)
         sigma = float(np.min(dyn["relaxation_length"]["sigma_m"])) if "relaxation_length" in dyn else self._sigma0
@@ -273,20 +311,8 @@ class Replay:
         X = simulate(np.ascontiguousarray(x0[:, :8]), tau, vx, dt=w.dt, effects=eff, vehicle=model,
                      substeps=nsub)
         self.sim_seconds += time.perf_counter() - t
-        self.sim_steps += N * (w.n - 1)
-        mass = self.vehicle.mass + (rows[:, CAUSES["payload"][0]] if "payload" in dyn else 0.0)
-        Y = sensor_outputs(X, mass, w.dt, channels=w.channels, **sens)
-        for term, col in chan_terms:
-            ch = term.equation.split(":", 1)[1]
-            if ch in w.channels:
-                j = w.channels.index(ch)
-                if term.feature == "offset":
-                    Y[..., j] += col[:, None]
-                else:
-                    Y[..., j] *= 1.0 + col[:, None]
-        if not _below(Y.reshape(1, 1, 1, -1), _DIVERGED)[0, 0]:  # a candidate that diverges: a huge but finite misfit
-            Y = np.clip(np.nan_to_num(Y, nan=_DIVERGED, posinf=_DIVERGED, neginf=-_DIVERGED), -_DIVERGED, _DIVERGED)
-        return Y.reshape(m, Ws, w.n, len(w.channels))
+        self.sim_steps += N * k
+        return X, rows, dyn, sens, chan_terms
 
     def residual(self, Z: np.ndarray, widx: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """Weighted residual ``(y - y_hat)/sigma`` on the scored samples, shape (m, Ws, n, C)."""
@@ -314,6 +340,86 @@ class Replay:
         x0[:, FYF] = F * t.Fzf / (t.Fzf + t.Fzr)
         x0[:, FYR] = F * t.Fzr / (t.Fzf + t.Fzr)
         return x0
+
+    def start(self, Z: np.ndarray, widx: np.ndarray) -> np.ndarray:
+        """Start of the initial-state fit of windows ``widx`` for each parameter row of ``Z``, shape
+        (m, Ws, NX): :attr:`x_guess` with the lateral velocity, the one state no sensor reads, set
+        for each model (the second start of :meth:`fit_from_starts`).
+
+        The tire forces settle on their steady-state value within a relaxation time ``sigma / vx``
+        (tens of ms), so at a window's start the model's steady-state lateral force should carry
+        the measured one (``M ay``, the guess's total force). ``vy = vx tan(beta)`` with the
+        sideslip ``beta`` that makes the total tire force change least over the first sample (one
+        simulated sample per candidate): a scan of :data:`SLIP_SCAN`, then :data:`SLIP_FINE` around
+        its best point. Of the candidates within the measurement's own resolution of the least
+        change (the ay noise times the mass, times the share of a force step that relaxes in one
+        sample, ``1 - exp(-dt vx / sigma)``), the smallest ``|beta|``: on a saturated plateau,
+        where the force cannot tell, it moves no further than it must. Where ``vy = 0`` is within
+        :data:`SLIP_SIGNIFICANCE` such noise levels of the least change, the measured force does
+        not ask for a sideslip and ``vy`` stays that of :attr:`x_guess`.
+
+        Why: near the friction limit the replay is so sensitive to ``vy`` (a 2 s window of a steady
+        turn at 28 m/s with ``mu_peak`` 0.8 diverges unless ``vy`` starts within ~0.1 m/s of its
+        true -1.03 m/s) that the Gauss-Newton steps from ``vy = 0`` never reach it, and a correct
+        saturating tire scored worse than a wrong stiffness.
+        """
+        Z = np.atleast_2d(np.asarray(Z, dtype=float))
+        widx = np.asarray(widx)
+        m, Ws = Z.shape[0], len(widx)
+        xg = self.x_guess[widx]
+        v0 = self.win.vx[widx, 0]
+        beta = np.zeros((m, Ws))
+        # what the measured force can tell: the ay noise as a force, as far as it relaxes in one sample
+        tol = (self.sigma[self.win.channels.index("ay")] * self.vehicle.mass
+               * (1.0 - np.exp(-self.win.dt * v0 / self._sigma0)))[None, None, :]
+        for grid in (SLIP_SCAN, SLIP_FINE):
+            K = len(grid)
+            b = beta[:, None, :] + grid[None, :, None]  # (m, K, Ws)
+            x0 = np.repeat(xg[None, None], m, axis=0).repeat(K, axis=1)  # (m, K, Ws, NX)
+            x0[..., VY] = v0 * np.tan(b)
+            X = self._simulate(np.repeat(Z, K, axis=0), widx, x0.reshape(m * K, Ws, NX), 2)[0]
+            F = X[:, :, FYF] + X[:, :, FYR]
+            miss = np.abs(F[:, 1] - F[:, 0]).reshape(m, K, Ws)
+            miss = np.where(np.isfinite(miss), miss, np.inf)
+            least = miss.min(axis=1, keepdims=True)
+            if grid is SLIP_SCAN:  # does the measured force ask for a sideslip at all?
+                ask = miss[:, _ZERO_SLIP] > least[:, 0] + SLIP_SIGNIFICANCE * tol[0]  # (m, Ws)
+            near = miss <= least + tol  # within the noise: the smallest |beta|
+            pick = np.argmin(np.where(near, np.abs(b), np.inf), axis=1)  # (m, Ws)
+            beta = np.take_along_axis(b, pick[:, None, :], axis=1)[:, 0]
+        x = np.repeat(xg[None], m, axis=0)
+        x[..., VY] = np.where(ask, v0 * np.tan(beta), xg[None, :, VY])
+        return x
+
+    def fit_from_starts(self, Z: np.ndarray, widx: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray, tuple]:
+        """``steps`` Gauss-Newton steps on the initial states of windows ``widx`` for each row of ``Z``
+        from :attr:`x_guess` (``vy = 0``) and, where the model's own sideslip start (:meth:`start`)
+        is further from the sideslip that fit reached than the fine scan's half-width
+        (:data:`SLIP_FINE`; a trapped or diverged fit), from that start too; per (row, window) the
+        fit of lower weighted residual is kept (as :meth:`fit_states_from`). Returns the residual
+        (m, Ws, n, C), the states (m, Ws, NX) and the pseudo-inverses of :meth:`linearise` at the
+        kept start."""
+        Z = np.atleast_2d(np.asarray(Z, dtype=float))
+        widx = np.asarray(widx)
+        x = np.repeat(self.x_guess[widx][None], Z.shape[0], axis=0)
+        r0, (P, prior) = self.linearise(Z, widx, x)
+        r, x = self.gauss_newton(Z, widx, x, r0, (P, prior), steps)
+        xs = self.start(Z, widx)
+        # a second fit where the start asks for a sideslip and the first fit did not get near it
+        v0 = self.win.vx[widx, 0][None]
+        asked = xs[..., VY] != self.x_guess[widx][None, :, VY]
+        moved = asked & (np.abs(np.arctan2(x[..., VY], v0) - np.arctan2(xs[..., VY], v0)) > SLIP_FINE[-1])
+        if moved.any():
+            rows, wins = np.flatnonzero(moved.any(axis=1)), np.flatnonzero(moved.any(axis=0))
+            blk = np.ix_(rows, wins)
+            x1 = xs[blk]
+            r1, (P1, prior1) = self.linearise(Z[rows], widx[wins], x1)
+            r1, x1 = self.gauss_newton(Z[rows], widx[wins], x1, r1, (P1, prior1), steps)
+            better = moved[blk] & (window_costs(r1) < window_costs(r[blk]))
+            i, j = np.nonzero(better)
+            I, J = rows[i], wins[j]
+            r[I, J], x[I, J], P[I, J], prior[I, J] = r1[i, j], x1[i, j], P1[i, j], prior1[i, j]
+        return r, x, (P, prior)
 
     def linearise(self, Z: np.ndarray, widx: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual at ``x0`` and the damped pseudo-inverse of the sensitivity to the initial state.
@@ -401,7 +507,7 @@ class Replay:
         Z : ndarray, shape (m, P)
         widx : ndarray of int, shape (Ws,)
         x0 : ndarray, shape (m, Ws, NX), optional
-            Starting states (default: :attr:`x_guess`, from the measured channels).
+            Starting states (default: from the measured channels, :meth:`fit_from_starts`).
         steps : int
             Gauss-Newton steps.
         chunk : int
@@ -416,13 +522,16 @@ class Replay:
         Z = np.atleast_2d(np.asarray(Z, dtype=float))
         widx = np.asarray(widx)
         m, Ws = Z.shape[0], len(widx)
-        x = np.repeat(self.x_guess[widx][None], m, axis=0) if x0 is None else np.array(x0, dtype=float)
+        x = None if x0 is None else np.array(x0, dtype=float)
         rs, xs = [], []
         step = max(1, chunk // Ws)
         for i in range(0, m, step):
             sl = slice(i, i + step)
-            r0, P = self.linearise(Z[sl], widx, x[sl])
-            r, xx = self.gauss_newton(Z[sl], widx, x[sl], r0, P, steps)
+            if x is None:
+                r, xx, _ = self.fit_from_starts(Z[sl], widx, steps)
+            else:
+                r0, P = self.linearise(Z[sl], widx, x[sl])
+                r, xx = self.gauss_newton(Z[sl], widx, x[sl], r0, P, steps)
             rs.append(r)
             xs.append(xx)
         return np.concatenate(rs), np.concatenate(xs)
