@@ -132,11 +132,10 @@ def test_replay_batches_effect_sizes_in_one_call():
     assert np.argmin(cost) == 2
     assert cost[2] < 1e-2 * cost[0]
     # per (size, window): the start's sideslip scan (one sample per candidate), then linearise + 2
-    # Gauss-Newton steps; the windows where that scan asks for another start fit again from it
+    # Gauss-Newton steps; on this mild ride no window's force asks for a sideslip (measured: Replay.start
+    # keeps vy = 0 everywhere), so there is no second fit (test_diagnose_saturation tests one that asks)
     fit = (NX + 1 + 2) * (win.n - 1)
-    base = 4 * len(win) * (len(SLIP_SCAN) + len(SLIP_FINE) + fit)
-    extra = rp.sim_steps - steps0 - base
-    assert extra >= 0 and extra % fit == 0, (extra, fit)
+    assert rp.sim_steps - steps0 == 4 * len(win) * (len(SLIP_SCAN) + len(SLIP_FINE) + fit)
 
 
 # ----------------------------------------------------------------------------- noise

@@ -56,8 +56,9 @@ batched simulation. Starting from the measured start state,
 nearly linear: the nonlinearity is ``sin(phi)`` and tire saturation). The one
 state no sensor reads is the lateral velocity (0 in the measured start); near the
 friction limit a saturating model's replay from ``vy = 0`` diverges, so where the
-measured lateral force asks for a sideslip under the model, the fit is made again
-from that sideslip and the better fit kept (:meth:`Replay.start`,
+measured lateral force asks for a sideslip under the model that the fit from
+``vy = 0`` did not reach, the fit is made again from that sideslip and the better
+fit kept (:meth:`Replay.start`,
 :meth:`Replay.fit_from_starts`).
 
 Integration: :func:`ptw_env.integrate.simulate` (RK4, inputs held over each
@@ -180,7 +181,8 @@ class Replay:
     Attributes
     ----------
     x_guess : ndarray, shape (W, NX)
-        Start of every initial-state fit: the measured start states (:meth:`_initial_guess`).
+        The measured start states (:meth:`_initial_guess`): the start of every initial-state fit, with a
+        second, sideslip start where the measured force asks for one (:meth:`fit_from_starts`).
     sim_seconds : float
         Wall time spent in :func:`ptw_env.integrate.simulate` so far [s].
     sim_steps : int
@@ -351,7 +353,7 @@ class Replay:
         the measured one (``M ay``, the guess's total force). ``vy = vx tan(beta)`` with the
         sideslip ``beta`` that makes the total tire force change least over the first sample (one
         simulated sample per candidate): a scan of :data:`SLIP_SCAN`, then :data:`SLIP_FINE` around
-        its best point. Of the candidates within the measurement's own resolution of the least
+        the point it chose. Of the candidates within the measurement's own resolution of the least
         change (the ay noise times the mass, times the share of a force step that relaxes in one
         sample, ``1 - exp(-dt vx / sigma)``), the smallest ``|beta|``: on a saturated plateau,
         where the force cannot tell, it moves no further than it must. Where ``vy = 0`` is within
