@@ -20,7 +20,7 @@ from assist.diagnose.data import auto_window, make_windows, reconstruct_speed
 from assist.diagnose.measurement import sensor_outputs
 from assist.diagnose.noise import noise_levels, white_noise_std
 from assist.diagnose.params import CAUSES, CLOSURES, N_TABLE, NOMINAL, PARAMS
-from assist.diagnose.replay import NX, SLIP_FINE, SLIP_SCAN, Replay
+from assist.diagnose.replay import NX, Replay
 from conftest import DATA
 from ptw_env.effects import VOCABULARY, Effects
 from ptw_env.logs import LogFormatError, read_log, write_log
@@ -131,11 +131,9 @@ def test_replay_batches_effect_sizes_in_one_call():
     cost = (r**2).sum(axis=(1, 2, 3))
     assert np.argmin(cost) == 2
     assert cost[2] < 1e-2 * cost[0]
-    # per (size, window): the start's sideslip scan (one sample per candidate), then linearise + 2
-    # Gauss-Newton steps; on this mild ride no window's force asks for a sideslip (measured: Replay.start
-    # keeps vy = 0 everywhere), so there is no second fit (test_diagnose_saturation tests one that asks)
-    fit = (NX + 1 + 2) * (win.n - 1)
-    assert rp.sim_steps - steps0 == 4 * len(win) * (len(SLIP_SCAN) + len(SLIP_FINE) + fit)
+    # per (size, window): linearise + 2 Gauss-Newton steps; no sideslip scan or second start (only a
+    # saturating tire gets one: Replay.fit_from_starts; test_diagnose_saturation tests one)
+    assert rp.sim_steps - steps0 == 4 * len(win) * (NX + 1 + 2) * (win.n - 1)
 
 
 # ----------------------------------------------------------------------------- noise

@@ -406,7 +406,13 @@ class Replay:
         x = np.repeat(self.x_guess[widx][None], Z.shape[0], axis=0)
         r0, (P, prior) = self.linearise(Z, widx, x)
         r, x = self.gauss_newton(Z, widx, x, r0, (P, prior), steps)
-        xs = self.start(Z, widx)
+        # only a tire force nonlinear in the slip (a saturating tire) needs it: for a linear tire the
+        # fit is linear in vy (apart from sin phi) and the steps from vy = 0 reach it
+        sat = Z[:, CAUSES["tire_saturation"][0]] > 0.0
+        if not sat.any():
+            return r, x, (P, prior)
+        xs = np.repeat(self.x_guess[widx][None], Z.shape[0], axis=0)
+        xs[sat] = self.start(Z[sat], widx)
         # a second fit where the start asks for a sideslip and the first fit did not get near it
         v0 = self.win.vx[widx, 0][None]
         asked = xs[..., VY] != self.x_guess[widx][None, :, VY]
