@@ -1,13 +1,15 @@
 """Tire saturation vs a lower cornering stiffness (issue 19, item 4): which one the diagnosis names,
 or whether it says "ambiguous between them", on rides with one of them hidden.
 
-Cases (45 s rides, reference sensors, noise on, ``pairs=False`` as the tests): a steady turn at
+Cases (45 s rides, reference sensors, noise on, ``pairs=False`` as the tests): the slalom with
+saturation at mu_peak 0.6; a steady turn at
 28 m/s (``constant_radius``) with saturation at mu_peak 0.6 (the ride slides out), 0.8 and 1.5, a
 stiffness change of 0.8 and nothing hidden; the ``handling`` ride with saturation 0.6. Per ride: the
 verdict, whether it is ambiguous (and with what), the held-out improvement of the saturation and of
-the stiffness hypothesis (noise variances per value), and whether the ride fell.
+the stiffness hypothesis (noise variances per value), whether the ride fell and the log's length [s]
+(a ride that falls ends there).
 
-Run: ``python scripts/eval_saturation.py [--seeds 61 63 64] [--json OUT.json]`` (about 4 min on 2 cores
+Run: ``python scripts/eval_saturation.py [--seeds 61 63 64] [--json OUT.json]`` (about 5 min on 2 cores
 for the default seeds).
 """
 
@@ -29,6 +31,7 @@ from ptw_env.scenarios import make_scenario  # noqa: E402
 from _outputs import add_overwrite, output_file  # noqa: E402  (scripts/_outputs.py)
 
 CASES = [
+    ("slalom", {"tire_saturation": {"mu_peak": 0.6}}),
     ("constant_radius", {"tire_saturation": {"mu_peak": 0.6}}),
     ("constant_radius", {"tire_saturation": {"mu_peak": 0.8}}),
     ("constant_radius", {"tire_saturation": {"mu_peak": 1.5}}),
@@ -50,7 +53,7 @@ def main() -> None:
     args = ap.parse_args()
     out = output_file(ap, "--json", args.json, args.overwrite)
     rows = []
-    print(f"{'ride':16s} {'hidden':28s} {'seed':>4s} {'fell':>5s}  {'verdict':40s} {'imp sat':>8s} {'imp stiff':>9s}  ambiguous")
+    print(f"{'ride':16s} {'hidden':28s} {'seed':>4s} {'fell':>5s} {'log s':>5s}  {'verdict':40s} {'imp sat':>8s} {'imp stiff':>9s}  ambiguous")
     for scenario, eff in CASES:
         for seed in args.seeds:
             t0 = time.perf_counter()
@@ -59,6 +62,7 @@ def main() -> None:
             imp = {"+".join(c["cause"] for c in h["causes"]): h["improvement"] for h in rep.hypotheses}
             amb = rep.ambiguous
             row = {"ride": scenario, "hidden": eff or {}, "seed": seed, "fell": bool(log.meta.get("fell")),
+                   "log_s": round(float(log.duration_s), 2),
                    "verdict": rep.causes, "explained": rep.explained,
                    "improvement_saturation": imp.get("tire_saturation"), "improvement_stiffness": imp.get("tire_stiffness"),
                    "ambiguous": amb, "seconds": round(time.perf_counter() - t0, 1)}
@@ -66,7 +70,7 @@ def main() -> None:
             hidden = _causes([{"cause": c, "params": p} for c, p in (eff or {}).items()]) or "none"
             amb_s = (f"{amb['separation_margin']:+.4f} between {' and '.join(_causes(b) for b in amb['between'])}"
                      if amb else "-")
-            print(f"{scenario:16s} {hidden:28s} {seed:4d} {str(row['fell']):>5s}  {_causes(rep.causes):40s} "
+            print(f"{scenario:16s} {hidden:28s} {seed:4d} {str(row['fell']):>5s} {row['log_s']:5.1f}  {_causes(rep.causes):40s} "
                   f"{row['improvement_saturation']:8.4f} {row['improvement_stiffness']:9.4f}  {amb_s}", flush=True)
     if out is not None:
         atomic_write_text(out, json.dumps({"command": "python scripts/eval_saturation.py " + " ".join(sys.argv[1:]),

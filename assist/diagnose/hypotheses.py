@@ -206,8 +206,8 @@ class HypothesisFitter:
 
         Each evaluated model gets its own initial-state sensitivity (:meth:`Replay.linearise`)
         and :data:`STATE_STEPS` Gauss-Newton steps from the measured start states
-        (:attr:`Replay.x_guess`, and the model's own sideslip where the measured force asks for
-        one: :meth:`Replay.fit_from_starts`). The Jacobian is variable projection by forward differences:
+        (:attr:`Replay.x_guess`, and for a saturating tire its own sideslip where its saturation
+        asks for one: :meth:`Replay.fit_from_starts`). The Jacobian is variable projection by forward differences:
         every perturbed model re-fits the initial states by one Gauss-Newton step from the
         unperturbed optimum, and so does the unperturbed model itself (the difference then
         holds only the parameter's effect, not the last step's), all in one batched simulation.

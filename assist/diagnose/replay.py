@@ -56,10 +56,10 @@ batched simulation. Starting from the measured start state,
 nearly linear: the nonlinearity is ``sin(phi)`` and tire saturation). The one
 state no sensor reads is the lateral velocity (0 in the measured start); near the
 friction limit a saturating model's replay from ``vy = 0`` diverges, so where the
-measured lateral force asks for a sideslip under the model that the fit from
-``vy = 0`` did not reach, the fit is made again from that sideslip and the better
-fit kept (:meth:`Replay.start`,
-:meth:`Replay.fit_from_starts`).
+measured lateral force asks for a sideslip under a saturating model (and not under
+the same model with a linear tire) that the fit from ``vy = 0`` did not reach, the
+fit is made again from that sideslip and the better fit kept (:meth:`Replay.start`,
+:meth:`Replay.fit_from_starts`); linear-tire models keep the one start.
 
 Integration: :func:`ptw_env.integrate.simulate` (RK4, inputs held over each
 sample) with as many substeps as keep ``|lambda h| <= EIG_STEP`` for the
@@ -182,7 +182,7 @@ class Replay:
     ----------
     x_guess : ndarray, shape (W, NX)
         The measured start states (:meth:`_initial_guess`): the start of every initial-state fit, with a
-        second, sideslip start where the measured force asks for one (:meth:`fit_from_starts`).
+        second, sideslip start for a saturating tire where its saturation asks for one (:meth:`fit_from_starts`).
     sim_seconds : float
         Wall time spent in :func:`ptw_env.integrate.simulate` so far [s].
     sim_steps : int
@@ -343,6 +343,41 @@ class Replay:
         x0[:, FYR] = F * t.Fzr / (t.Fzf + t.Fzr)
         return x0
 
+    def _slip_scan(self, Z: np.ndarray, widx: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The sideslip scan of :meth:`start` for each row of ``Z`` (shape (m, P)) and window ``widx``.
+        Returns ``beta`` (m, Ws) [rad], ``ask`` (m, Ws): ``vy = 0`` misses the least force change by
+        more than :data:`SLIP_SIGNIFICANCE` noise levels, ``least`` (m, Ws) [N], that least change,
+        and ``tol`` (Ws,) [N], the noise level of a force change over one sample."""
+        m, Ws = Z.shape[0], len(widx)
+        xg = self.x_guess[widx]
+        v0 = self.win.vx[widx, 0]
+        beta = np.zeros((m, Ws))
+        # what the measured force can tell: the ay noise as a force, as far as it relaxes in one sample
+        tol = (self.sigma[self.win.channels.index("ay")] * self.vehicle.mass
+               * (1.0 - np.exp(-self.win.dt * v0 / self._sigma0)))
+        for grid in (SLIP_SCAN, SLIP_FINE):
+            b = beta[:, None, :] + grid[None, :, None]  # (m, K, Ws)
+            miss = self._force_miss(Z, widx, b)
+            least = miss.min(axis=1, keepdims=True)
+            if grid is SLIP_SCAN:  # does the measured force ask for a sideslip at all?
+                ask = miss[:, _ZERO_SLIP] > least[:, 0] + SLIP_SIGNIFICANCE * tol[None]  # (m, Ws)
+            near = miss <= least + tol[None, None]  # within the noise: the smallest |beta|
+            pick = np.argmin(np.where(near, np.abs(b), np.inf), axis=1)  # (m, Ws)
+            beta = np.take_along_axis(b, pick[:, None, :], axis=1)[:, 0]
+        return beta, ask, least[:, 0], tol
+
+    def _force_miss(self, Z: np.ndarray, widx: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``|F(dt) - F(0)|`` [N], the change of the total tire force over the first sample, from
+        :attr:`x_guess` with ``vy = vx tan(b)``; ``b`` of shape (m, K, Ws), one simulated sample
+        per candidate; a diverged one is ``inf``."""
+        m, K, Ws = b.shape
+        x0 = np.repeat(self.x_guess[widx][None, None], m, axis=0).repeat(K, axis=1)  # (m, K, Ws, NX)
+        x0[..., VY] = self.win.vx[widx, 0] * np.tan(b)
+        X = self._simulate(np.repeat(Z, K, axis=0), widx, x0.reshape(m * K, Ws, NX), 2)[0]
+        F = X[:, :, FYF] + X[:, :, FYR]
+        miss = np.abs(F[:, 1] - F[:, 0]).reshape(m, K, Ws)
+        return np.where(np.isfinite(miss), miss, np.inf)
+
     def start(self, Z: np.ndarray, widx: np.ndarray) -> np.ndarray:
         """Start of the initial-state fit of windows ``widx`` for each parameter row of ``Z``, shape
         (m, Ws, NX): :attr:`x_guess` with the lateral velocity, the one state no sensor reads, set
@@ -355,10 +390,19 @@ class Replay:
         simulated sample per candidate): a scan of :data:`SLIP_SCAN`, then :data:`SLIP_FINE` around
         the point it chose. Of the candidates within the measurement's own resolution of the least
         change (the ay noise times the mass, times the share of a force step that relaxes in one
-        sample, ``1 - exp(-dt vx / sigma)``), the smallest ``|beta|``: on a saturated plateau,
-        where the force cannot tell, it moves no further than it must. Where ``vy = 0`` is within
-        :data:`SLIP_SIGNIFICANCE` such noise levels of the least change, the measured force does
-        not ask for a sideslip and ``vy`` stays that of :attr:`x_guess`.
+        sample, ``1 - exp(-dt vx / sigma)``, ``sigma`` the vehicle's relaxation length), the
+        smallest ``|beta|``: on a saturated plateau, where the force cannot tell, it moves no
+        further than it must. Where ``vy = 0`` is within :data:`SLIP_SIGNIFICANCE` such noise
+        levels of the least change, the measured force does not ask for a sideslip and ``vy``
+        stays that of :attr:`x_guess`.
+
+        A row with a saturating tire (``tire_saturation`` active) moves only where the saturation
+        itself asks: where, at the sideslip the same row with a linear tire would start from, its
+        own force change is more than :data:`SLIP_SIGNIFICANCE` noise levels above its least. Where
+        the linear tire asks as much (a model error every hypothesis shares, such as on the real
+        rides, or a saturation so weak that the tire is linear), the row keeps ``vy`` of
+        :attr:`x_guess`, as the linear rows of :meth:`fit_from_starts` do, so that the second start
+        favours no hypothesis.
 
         Why: near the friction limit the replay is so sensitive to ``vy`` (a 2 s window of a steady
         turn at 28 m/s with ``mu_peak`` 0.8 diverges unless ``vy`` starts within ~0.1 m/s of its
@@ -367,48 +411,40 @@ class Replay:
         """
         Z = np.atleast_2d(np.asarray(Z, dtype=float))
         widx = np.asarray(widx)
-        m, Ws = Z.shape[0], len(widx)
         xg = self.x_guess[widx]
-        v0 = self.win.vx[widx, 0]
-        beta = np.zeros((m, Ws))
-        # what the measured force can tell: the ay noise as a force, as far as it relaxes in one sample
-        tol = (self.sigma[self.win.channels.index("ay")] * self.vehicle.mass
-               * (1.0 - np.exp(-self.win.dt * v0 / self._sigma0)))[None, None, :]
-        for grid in (SLIP_SCAN, SLIP_FINE):
-            K = len(grid)
-            b = beta[:, None, :] + grid[None, :, None]  # (m, K, Ws)
-            x0 = np.repeat(xg[None, None], m, axis=0).repeat(K, axis=1)  # (m, K, Ws, NX)
-            x0[..., VY] = v0 * np.tan(b)
-            X = self._simulate(np.repeat(Z, K, axis=0), widx, x0.reshape(m * K, Ws, NX), 2)[0]
-            F = X[:, :, FYF] + X[:, :, FYR]
-            miss = np.abs(F[:, 1] - F[:, 0]).reshape(m, K, Ws)
-            miss = np.where(np.isfinite(miss), miss, np.inf)
-            least = miss.min(axis=1, keepdims=True)
-            if grid is SLIP_SCAN:  # does the measured force ask for a sideslip at all?
-                ask = miss[:, _ZERO_SLIP] > least[:, 0] + SLIP_SIGNIFICANCE * tol[0]  # (m, Ws)
-            near = miss <= least + tol  # within the noise: the smallest |beta|
-            pick = np.argmin(np.where(near, np.abs(b), np.inf), axis=1)  # (m, Ws)
-            beta = np.take_along_axis(b, pick[:, None, :], axis=1)[:, 0]
-        x = np.repeat(xg[None], m, axis=0)
-        x[..., VY] = np.where(ask, v0 * np.tan(beta), xg[None, :, VY])
+        beta, ask, least, tol = self._slip_scan(Z, widx)
+        isat = CAUSES["tire_saturation"][0]
+        sat = Z[:, isat] != self.params.nominal[isat]
+        if sat.any():
+            Zl = Z[sat].copy()
+            Zl[:, isat] = self.params.nominal[isat]  # the same rows with a linear tire
+            beta_l, ask_l, _, _ = self._slip_scan(Zl, widx)
+            beta_l = np.where(ask_l, beta_l, 0.0)  # where the linear tire starts from
+            miss_l = self._force_miss(Z[sat], widx, beta_l[:, None, :])[:, 0]
+            ask[sat] &= miss_l > least[sat] + SLIP_SIGNIFICANCE * tol[None]
+        x = np.repeat(xg[None], Z.shape[0], axis=0)
+        x[..., VY] = np.where(ask, self.win.vx[widx, 0] * np.tan(beta), xg[None, :, VY])
         return x
 
     def fit_from_starts(self, Z: np.ndarray, widx: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray, tuple]:
         """``steps`` Gauss-Newton steps on the initial states of windows ``widx`` for each row of ``Z``
-        from :attr:`x_guess` (``vy = 0``) and, where the model's own sideslip start (:meth:`start`)
-        is further from the sideslip that fit reached than the fine scan's half-width
+        from :attr:`x_guess` (``vy = 0``) and, for a row with a saturating tire where its own sideslip
+        start (:meth:`start`: only where the saturation, not a model error a linear tire shares, asks
+        for one) is further from the sideslip that fit reached than the fine scan's half-width
         (:data:`SLIP_FINE`; a trapped or diverged fit), from that start too; per (row, window) the
-        fit of lower weighted residual is kept (as :meth:`fit_states_from`). Returns the residual
-        (m, Ws, n, C), the states (m, Ws, NX) and the pseudo-inverses of :meth:`linearise` at the
-        kept start."""
+        fit of lower weighted residual is kept (as :meth:`fit_states_from`). Rows with a linear tire
+        get the first fit only. Returns the residual (m, Ws, n, C), the states (m, Ws, NX) and the
+        pseudo-inverses of :meth:`linearise` at the kept start."""
         Z = np.atleast_2d(np.asarray(Z, dtype=float))
         widx = np.asarray(widx)
         x = np.repeat(self.x_guess[widx][None], Z.shape[0], axis=0)
         r0, (P, prior) = self.linearise(Z, widx, x)
         r, x = self.gauss_newton(Z, widx, x, r0, (P, prior), steps)
         # only a tire force nonlinear in the slip (a saturating tire) needs it: for a linear tire the
-        # fit is linear in vy (apart from sin phi) and the steps from vy = 0 reach it
-        sat = Z[:, CAUSES["tire_saturation"][0]] > 0.0
+        # fit is linear in vy (apart from sin phi) and the steps from vy = 0 reach it; and a saturating
+        # row only where its saturation asks (start()), so that no hypothesis is favoured elsewhere
+        isat = CAUSES["tire_saturation"][0]
+        sat = Z[:, isat] != self.params.nominal[isat]
         if not sat.any():
             return r, x, (P, prior)
         xs = np.repeat(self.x_guess[widx][None], Z.shape[0], axis=0)
