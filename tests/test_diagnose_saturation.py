@@ -83,6 +83,7 @@ def test_only_a_saturation_that_bites_gets_the_second_start():
     allw = np.arange(len(win))
     turn = np.abs(np.asarray(log["x_vy"])[win.starts]) > 0.5
     xs = rp.start(Z, allw)
+    assert np.all(xs[0, turn, VY] != rp.x_guess[turn, VY])  # the linear tire's force asks for a sideslip too
     assert np.all(xs[1, :, VY] == rp.x_guess[:, VY])
     assert np.all(xs[2, turn, VY] != rp.x_guess[turn, VY])
     r, x, _ = rp.fit_from_starts(Z, allw, 2)

@@ -56,9 +56,10 @@ batched simulation. Starting from the measured start state,
 nearly linear: the nonlinearity is ``sin(phi)`` and tire saturation). The one
 state no sensor reads is the lateral velocity (0 in the measured start); near the
 friction limit a saturating model's replay from ``vy = 0`` diverges, so where the
-measured lateral force asks for a sideslip under a saturating model (and not under
-the same model with a linear tire) that the fit from ``vy = 0`` did not reach, the
-fit is made again from that sideslip and the better fit kept (:meth:`Replay.start`,
+measured lateral force asks a saturating model for a sideslip (its force misses at
+``vy = 0`` and also at the sideslip the scan finds for the same model with a linear
+tire) that the fit from ``vy = 0`` did not reach, the fit is made again from that
+sideslip and the better fit kept (:meth:`Replay.start`,
 :meth:`Replay.fit_from_starts`); linear-tire models keep the one start.
 
 Integration: :func:`ptw_env.integrate.simulate` (RK4, inputs held over each
@@ -345,11 +346,11 @@ class Replay:
 
     def _slip_scan(self, Z: np.ndarray, widx: np.ndarray) -> tuple[np.ndarray, ...]:
         """The sideslip scan of :meth:`start` for each row of ``Z`` (shape (m, P)) and window ``widx``.
-        Returns ``beta`` (m, Ws) [rad], ``ask`` (m, Ws): ``vy = 0`` misses the least force change by
-        more than :data:`SLIP_SIGNIFICANCE` noise levels, ``least`` (m, Ws) [N], that least change,
-        and ``tol`` (Ws,) [N], the noise level of a force change over one sample."""
+        Returns ``beta`` (m, Ws) [rad], ``ask`` (m, Ws): ``vy = 0`` misses the coarse scan's least
+        force change by more than :data:`SLIP_SIGNIFICANCE` noise levels, ``least`` (m, Ws) [N], the
+        fine scan's least change (at ``beta``), and ``tol`` (Ws,) [N], the noise level of a force
+        change over one sample."""
         m, Ws = Z.shape[0], len(widx)
-        xg = self.x_guess[widx]
         v0 = self.win.vx[widx, 0]
         beta = np.zeros((m, Ws))
         # what the measured force can tell: the ay noise as a force, as far as it relaxes in one sample
