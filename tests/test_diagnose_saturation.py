@@ -19,12 +19,13 @@ docs/results/diagnose_saturation.txt; the tests below ride seed 61): mu_peak 0.8
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from assist.diagnose import diagnose, selection
 from assist.diagnose.diagnosis import replay_windows
 from assist.diagnose.params import CAUSES, NOMINAL
 from assist.diagnose.replay import Replay, window_costs
-from ptw_env.sensors import DEFAULT_NOISE_STD
+from ptw_env.sensors import DEFAULT_NOISE_STD, SensorConfig
 from ptw_env.vehicle import REFERENCE_SCOOTER, VY
 from test_diagnose import ride
 
@@ -130,6 +131,22 @@ def test_a_mild_steady_turn_is_ambiguous_between_saturation_and_stiffness():
                    pairs=False, progress=False)
     assert rep.causes[0]["cause"] == "tire_stiffness" and rep.ambiguous is None, (rep.causes, rep.ambiguous)
     assert abs(rep.causes[0]["params"]["front_scale"] - 0.8) <= 0.05, rep.causes
+
+
+def test_a_clean_steady_turn_without_encoder_quantisation_names_nothing():
+    """The clean turn's false stiffness verdict (next test) comes from the steering encoder: the same ride
+    with the angle not quantised (the same seed and noise otherwise) gets no cause."""
+    log = ride("constant_radius", None, seed=61, sensors=SensorConfig(delta_quantum=None))
+    rep = diagnose(log, pairs=False, progress=False, encoder_quantum=None)
+    assert [c["cause"] for c in rep.causes] == ["none"], rep.causes
+
+
+@pytest.mark.xfail(strict=True, reason="known defect (README, 'Saturation or stiffness?'): in a steady turn the angle "
+                   "barely moves, so the encoder's quantisation (q = 2 pi / 1024) is a constant bias, priced as white "
+                   "noise, which a 1 % stiffness change absorbs: tire_stiffness 0.996 / 1.012 is named")
+def test_a_clean_steady_turn_names_nothing():
+    rep = diagnose(ride("constant_radius", None, seed=61), pairs=False, progress=False)
+    assert [c["cause"] for c in rep.causes] == ["none"], rep.causes
 
 
 def _ranked(S, counts):
