@@ -93,6 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     pairs = {"auto": True, "all": "all", "none": False}[a.pairs]
 
     from assist.diagnose import diagnose
+    from assist.diagnose.report import causes_text
     from ptw_env.ride import ride_scenario
     from ptw_env.scenarios import make_scenario
 
@@ -135,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         worst = max(worst, dt)
         times.append(dt)
         duration = _as_log(src).duration_s
-        verdict = ", ".join(f"{c['cause']}({', '.join(f'{v:.3g}' for v in c['params'].values())})" for c in rep.causes)
+        verdict = causes_text(rep.causes, ", ")
         print(f"{name:52s} {dt:7.1f} {ref:8.3f} {dt / ref:8.0f} {duration / dt:10.2f} "
               f"{100 * rep.sim_seconds / dt:8.0f} % {rep.sim_steps:14,d}  {verdict}")
     print("x replay: diagnosis time / one batched nominal replay of the same log (all windows, same run); "

@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from assist.diagnose import diagnose  # noqa: E402
+from assist.diagnose.report import causes_text  # noqa: E402
 from ptw_env.outputs import atomic_write_text  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
 from ptw_env.scenarios import make_scenario  # noqa: E402
@@ -41,10 +42,6 @@ CASES = [
 ]
 
 
-def _causes(causes: list[dict]) -> str:
-    return "+".join(f"{c['cause']}({', '.join(f'{v:g}' for v in c['params'].values())})" for c in causes)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, nargs="+", default=[61, 63, 64], help="ride seeds (default 61 63 64)")
@@ -53,7 +50,7 @@ def main() -> None:
     args = ap.parse_args()
     out = output_file(ap, "--json", args.json, args.overwrite)
     rows = []
-    print(f"{'ride':16s} {'hidden':28s} {'seed':>4s} {'fell':>5s} {'log s':>5s}  {'verdict':40s} {'imp sat':>8s} {'imp stiff':>9s}  ambiguous")
+    print(f"{'ride':16s} {'hidden':44s} {'seed':>4s} {'fell':>5s} {'log s':>5s}  {'verdict':52s} {'imp sat':>8s} {'imp stiff':>9s}  ambiguous")
     for scenario, eff in CASES:
         for seed in args.seeds:
             t0 = time.perf_counter()
@@ -67,10 +64,10 @@ def main() -> None:
                    "improvement_saturation": imp.get("tire_saturation"), "improvement_stiffness": imp.get("tire_stiffness"),
                    "ambiguous": amb, "seconds": round(time.perf_counter() - t0, 1)}
             rows.append(row)
-            hidden = _causes([{"cause": c, "params": p} for c, p in (eff or {}).items()]) or "none"
-            amb_s = (f"{amb['separation_margin']:+.4f} between {' and '.join(_causes(b) for b in amb['between'])}"
+            hidden = causes_text([{"cause": c, "params": p} for c, p in (eff or {}).items()]) or "none"
+            amb_s = (f"{amb['separation_margin']:+.4f} between {' and '.join(causes_text(b) for b in amb['between'])}"
                      if amb else "-")
-            print(f"{scenario:16s} {hidden:28s} {seed:4d} {str(row['fell']):>5s} {row['log_s']:5.1f}  {_causes(rep.causes):40s} "
+            print(f"{scenario:16s} {hidden:44s} {seed:4d} {str(row['fell']):>5s} {row['log_s']:5.1f}  {causes_text(rep.causes):52s} "
                   f"{row['improvement_saturation']:8.4f} {row['improvement_stiffness']:9.4f}  {amb_s}", flush=True)
     if out is not None:
         atomic_write_text(out, json.dumps({"command": "python scripts/eval_saturation.py " + " ".join(sys.argv[1:]),

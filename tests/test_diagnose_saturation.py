@@ -72,9 +72,10 @@ def test_the_sideslip_start_finds_the_lateral_velocity_no_sensor_reads():
 def test_only_a_saturation_that_bites_gets_the_second_start():
     """The second start favours no hypothesis: in the turn at mu_peak 0.8 the nominal (linear) model's
     force misses the measured one too, but a linear tire gets no second start, nor does a saturation so
-    weak that the tire is linear (mu_peak 1000, the search's bound): in one mixed batch their fits are
-    bit-identical to the fits from the measured start alone, while the saturation at 0.8 moves in every
-    window of the turn."""
+    weak that the tire is linear (mu_peak 1000, the search's bound): in one mixed batch its start stays
+    at the measured one and its fit is bit-identical to the fit from that start alone (the nominal row
+    never gets a second fit: Replay.saturating), while the saturation at 0.8 moves in every window of
+    the turn and fits it better."""
     log = ride("constant_radius", {"tire_saturation": {"mu_peak": 0.8}}, seed=61)
     win, _ = replay_windows(log, REFERENCE_SCOOTER)
     rp = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in win.channels]))
@@ -87,11 +88,12 @@ def test_only_a_saturation_that_bites_gets_the_second_start():
     assert np.all(xs[0, turn, VY] != rp.x_guess[turn, VY])  # the linear tire's force asks for a sideslip too
     assert np.all(xs[1, :, VY] == rp.x_guess[:, VY])
     assert np.all(xs[2, turn, VY] != rp.x_guess[turn, VY])
+    assert list(rp.saturating(Z)) == [False, True, True]
     r, x, _ = rp.fit_from_starts(Z, allw, 2)
     x0 = np.repeat(rp.x_guess[None], 3, axis=0)
     r0, P = rp.linearise(Z, allw, x0)
     r_guess, x_guess = rp.gauss_newton(Z, allw, x0, r0, P, 2)
-    assert np.array_equal(r[:2], r_guess[:2]) and np.array_equal(x[:2], x_guess[:2])
+    assert np.array_equal(r[1], r_guess[1]) and np.array_equal(x[1], x_guess[1])  # mu 1000: no second fit
     assert np.all(window_costs(r)[2, turn] < window_costs(r_guess)[2, turn])
 
 

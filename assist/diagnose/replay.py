@@ -344,6 +344,12 @@ class Replay:
         x0[:, FYR] = F * t.Fzr / (t.Fzf + t.Fzr)
         return x0
 
+    def saturating(self, Z: np.ndarray) -> np.ndarray:
+        """Rows of ``Z`` (shape (m, P)) whose tire saturates (``tire_saturation`` away from its nominal,
+        the linear tire), shape (m,): the rows that may get the sideslip start (:meth:`start`)."""
+        isat = CAUSES["tire_saturation"][0]
+        return np.atleast_2d(Z)[:, isat] != self.params.nominal[isat]
+
     def _slip_scan(self, Z: np.ndarray, widx: np.ndarray) -> tuple[np.ndarray, ...]:
         """The sideslip scan of :meth:`start` for each row of ``Z`` (shape (m, P)) and window ``widx``.
         Returns ``beta`` (m, Ws) [rad], ``ask`` (m, Ws): ``vy = 0`` misses the coarse scan's least
@@ -414,9 +420,9 @@ class Replay:
         widx = np.asarray(widx)
         xg = self.x_guess[widx]
         beta, ask, least, tol = self._slip_scan(Z, widx)
-        isat = CAUSES["tire_saturation"][0]
-        sat = Z[:, isat] != self.params.nominal[isat]
+        sat = self.saturating(Z)
         if sat.any():
+            isat = CAUSES["tire_saturation"][0]
             Zl = Z[sat].copy()
             Zl[:, isat] = self.params.nominal[isat]  # the same rows with a linear tire
             beta_l, ask_l, _, _ = self._slip_scan(Zl, widx)
@@ -444,8 +450,7 @@ class Replay:
         # only a tire force nonlinear in the slip (a saturating tire) needs it: for a linear tire the
         # fit is linear in vy (apart from sin phi) and the steps from vy = 0 reach it; and a saturating
         # row only where its saturation asks (start()), so that no hypothesis is favoured elsewhere
-        isat = CAUSES["tire_saturation"][0]
-        sat = Z[:, isat] != self.params.nominal[isat]
+        sat = self.saturating(Z)
         if not sat.any():
             return r, x, (P, prior)
         xs = np.repeat(self.x_guess[widx][None], Z.shape[0], axis=0)

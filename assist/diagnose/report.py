@@ -260,4 +260,4 @@ class DiagnosisReport:
         return fig
 
 
-__all__ = ["DiagnosisReport", "hypotheses_json", "method_json", "sig"]
+__all__ = ["DiagnosisReport", "causes_text", "hypotheses_json", "method_json", "sig"]
