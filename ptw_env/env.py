@@ -16,7 +16,7 @@ from .effects import Effects, as_effects
 from .episode import (OBS_REF, OBS_ROLL, OBS_VX, REASONS, SCENARIO_END, Actuator, CostConfig, EpisodeConfigError,
                       actuate, command, end_code, grip_utilisation, observe_into, roll_reward, step_cost)
 from .friction import FrictionPlants, FrictionSchedule
-from .integrate import Stepper, substeps_for
+from .integrate import Stepper, linear_rate, substeps_for
 from .randomize import Randomization, RandomizationError
 from .rider import DEFAULT_TAU_MAX
 from .scenarios import Scenario, ScenarioError, make_scenario
@@ -259,16 +259,26 @@ class PTWRollEnv(gym.Env):
         vehicle's own physical parameters (a vehicle file's), sensor noise and bias drawn from seeded
         distributions for every episode; ``info["randomized"]`` holds the episode's values.
     substeps : int, optional
-        At least this many RK4 substeps per control period. Default: as many as the vehicle's fastest mode
-        needs, and with ``randomize=`` as many as the fastest plant it can draw needs
-        (:func:`ptw_env.integrate.substeps_for`, :meth:`ptw_env.randomize.Randomization.stiffest_rate`);
-        :attr:`substeps` says how many are used. E.g. to compare a fixed model with a randomised one at the
-        same integration step. Not with ``friction=``.
+        At least this many RK4 substeps per control period. Default: as many as the fastest mode of the
+        plant needs at the speeds of the episode's ride (:func:`ptw_env.integrate.speed_grid`; the
+        vehicle's whole range with ``randomize_course``), and with ``randomize=`` as many as the fastest
+        plant it can draw needs there (:func:`ptw_env.integrate.substeps_for`,
+        :meth:`ptw_env.randomize.Randomization.stiffest_rate`); :attr:`substeps` says how many the current
+        ride uses, :attr:`ride_substeps` each ride's. E.g. to compare a fixed model with a randomised one at
+        the same integration step. Not with ``friction=``.
+    step_speeds : {"ride", "vehicle"}
+        The speeds the RK4 step is sized for: each ride's own (default; :func:`ptw_env.integrate.speed_grid`)
+        or the vehicle's whole range (what every ride took before this option; :func:`ptw_env.ride.ride_scenario`
+        keeps it, so the ride logs written before reproduce bit for bit): the vehicle's modes at 41 speeds of
+        its range and the plant's at its lowest, middle and highest speed (:func:`ptw_env.integrate.linear_rate`).
     render_mode : {"rgb_array", "human", None}
 
     Version history
     ---------------
-    * v0: first release.
+    * v0: first release. Since 2026-11-26 the RK4 step is sized for each ride's speeds (``step_speeds``): a
+      plant whose fastest mode needs more substeps only near the vehicle's top speed now takes fewer on slower
+      rides, the same ODE within the same accuracy bound (trajectories differ at integration round-off,
+      ~1e-6; ``step_speeds="vehicle"`` gives the earlier ones bit for bit).
 
     Examples
     --------
@@ -313,8 +323,12 @@ class PTWRollEnv(gym.Env):
         mirror: bool = False,
         render_mode: str | None = None,
         substeps: int | None = None,
+        step_speeds: str = "ride",
     ) -> None:
         super().__init__()
+        if step_speeds not in ("ride", "vehicle"):
+            raise EnvConfigError(f"step_speeds must be 'ride' or 'vehicle', got {step_speeds!r}")
+        self.step_speeds = step_speeds
         for name, v in (("dt", dt), ("tau_max", 1.0 if tau_max is None else tau_max),
                         ("reward_roll_scale_deg", reward_roll_scale_deg)):
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
@@ -387,10 +401,9 @@ class PTWRollEnv(gym.Env):
             self.randomization = Randomization.coerce(randomize)
         except RandomizationError as exc:
             raise EnvConfigError(str(exc)) from None
-        vehicle_rate = 0.0
         if self.randomization is not None:
             try:
-                vehicle_rate = self.randomization.check_vehicle(self.vehicle)
+                self.randomization.check_vehicle(self.vehicle)  # every vehicle it can draw, before any work
             except RandomizationError as exc:
                 raise EnvConfigError(str(exc)) from None
         if self.randomization is not None and friction is not None:
@@ -400,25 +413,14 @@ class PTWRollEnv(gym.Env):
         self._next_sample: dict[str, float] | None = None
 
         self.plant = compile_plant(self.vehicle, self.effects.dynamic)
-        self._stepper = Stepper(self.plant, self.dt)  # sized for this plant (a fixed effect may be the stiffest mode)
-        if self.randomization is not None and self.randomization.changes_plant:
-            # substeps for the stiffest plant the randomisation can draw (e.g. Coulomb steering friction, a short
-            # relaxation length, the fastest of the vehicles it draws)
-            try:
-                rate = self.randomization.stiffest_rate(self.vehicle, self.effects)
-            except RandomizationError as exc:
-                raise EnvConfigError(str(exc)) from None
-            nsub = max(self._stepper.nsub, substeps_for(self.dt, vehicle=self.vehicle, extra_rate=max(rate, vehicle_rate)))
-            self._stepper = Stepper(self.plant, self.dt, substeps=nsub)
         if substeps is not None:
             if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
                 raise EnvConfigError(f"substeps must be a positive whole number, got {substeps!r}")
             if friction is not None:
                 raise EnvConfigError("substeps= and friction= together are not supported (the friction schedule's "
                                      "plants size their own substeps)")
-            self._stepper = Stepper(self.plant, self.dt, substeps=max(self._stepper.nsub, int(substeps)))
+        self._min_substeps = 1 if substeps is None else int(substeps)
         self.friction = friction
-        self._friction = None if friction is None else FrictionPlants(friction, self.vehicle, self.effects, self.dt)
         self._sensors = SensorModel(self.sensor_config, self.effects.sensor, dt=self.dt)
         self.profile = self.scenario.profile(self.dt, seed=scenario_seed)
         try:
@@ -448,6 +450,14 @@ class PTWRollEnv(gym.Env):
         else:
             self.pool.append((self.profile, self.profile.mirrored()))
         self.ride_index, self.mirrored = 0, False
+        #: RK4 substeps per control period of each ride of :attr:`pool` (a mirrored ride has the same speeds)
+        by_ride = self.step_speeds == "ride" and not self.randomize_course
+        self.ride_substeps: tuple[int, ...] = tuple(
+            self._substeps_at(prof.vx if by_ride else None) for prof, _ in self.pool)
+        self._stepper = Stepper(self.plant, self.dt, substeps=self.ride_substeps[0])
+        self._friction = None if friction is None else FrictionPlants(
+            friction, self.vehicle, self.effects, self.dt,
+            speeds=np.concatenate([prof.vx for prof, _ in self.pool]) if by_ride else None)
 
         a = 1.0 if self.normalize_action else self.tau_max
         self.action_space = spaces.Box(-a, a, shape=(1,), dtype=np.float32)
@@ -513,6 +523,7 @@ class PTWRollEnv(gym.Env):
             self.ride_index, self.mirrored = draw_ride(self.np_random, len(self.pool), self.mirror)
             self.profile = self.pool[self.ride_index][1 if self.mirrored else 0]
             self.max_steps = len(self.profile.t) - 1
+            self._stepper.nsub = self.ride_substeps[self.ride_index]
         if self.randomization is not None:  # then the randomised values (ptw_env.randomize)
             if seed is not None or self._next_sample is None:  # the first episode's values (or a new seed's)
                 self._next_sample = self.randomization.sample(self.np_random)
@@ -610,8 +621,23 @@ class PTWRollEnv(gym.Env):
     # ------------------------------------------------------------------ public view (render, tools)
     @property
     def substeps(self) -> int:
-        """RK4 substeps per control period."""
+        """RK4 substeps per control period of the current ride (:attr:`ride_substeps`; with ``friction=``
+        each friction's plant has its own stepper, sized on the speeds of all the rides)."""
         return self._stepper.nsub
+
+    def _substeps_at(self, speeds) -> int:
+        """Substeps for a ride meeting ``speeds`` [m/s] (``None``: the vehicle's whole range): the plant's and
+        its vehicle's fastest mode there and, with a randomisation that changes the plant, the fastest plant
+        and vehicle it can draw (:meth:`ptw_env.randomize.Randomization.stiffest_rate`, ``check_vehicle``); at
+        least ``substeps=``."""
+        rate = float(linear_rate(self.plant, speeds))  # a fixed effect may be the stiffest mode
+        rnd = self.randomization
+        if rnd is not None and rnd.changes_plant:
+            try:
+                rate = max(rate, rnd.stiffest_rate(self.vehicle, self.effects, speeds), rnd.check_vehicle(self.vehicle, speeds))
+            except RandomizationError as exc:
+                raise EnvConfigError(str(exc)) from None
+        return max(self._min_substeps, substeps_for(self.dt, vehicle=self.vehicle, extra_rate=rate, speeds=speeds))
 
     @property
     def axle_loads(self) -> np.ndarray:

@@ -233,6 +233,9 @@ class FrictionPlants:
         The base dynamic effects (on the reference road).
     dt : float
         Control period of the steppers [s].
+    speeds : array, optional
+        Speeds [m/s] the steppers' substeps are sized for (:class:`ptw_env.integrate.Stepper`; default the
+        vehicle's whole range).
 
     Examples
     --------
@@ -242,13 +245,14 @@ class FrictionPlants:
     """
 
     def __init__(self, schedule: FrictionSchedule, vehicle: Vehicle | None = None, effects=None,
-                 dt: float = 0.01) -> None:
+                 dt: float = 0.01, speeds=None) -> None:
         if not isinstance(schedule, FrictionSchedule):
             raise FrictionScheduleError(f"friction must be a FrictionSchedule, got {type(schedule).__name__}")
         self.schedule = schedule
         self.vehicle = vehicle
         self.effects = as_effects(effects).dynamic
         self.dt = float(dt)
+        self.speeds = None if speeds is None else np.asarray(speeds, dtype=float)
         self._cache: dict[float, tuple[Plant, Stepper]] = {}
 
     def _entry(self, mu: float) -> tuple[Plant, Stepper]:
@@ -256,7 +260,7 @@ class FrictionPlants:
         hit = self._cache.get(key)
         if hit is None:
             plant = compile_plant(self.vehicle, self.schedule.effects_at(key, self.effects))
-            hit = (plant, Stepper(plant, self.dt))
+            hit = (plant, Stepper(plant, self.dt, speeds=self.speeds))
             self._cache[key] = hit
         return hit
 

@@ -32,15 +32,33 @@ class SimulationInputError(ValueError):
     """Inputs to :func:`simulate` with a wrong shape, a non-finite value or a speed outside the valid range."""
 
 
+def speed_grid(vehicle: Vehicle, speeds) -> np.ndarray:
+    """Speeds [m/s] at which a ride's fastest mode is sought: from the lowest to the highest of the speeds it
+    meets (e.g. its speed profile) at the spacing of :attr:`ptw_env.vehicle.Vehicle.fastest_eigenvalue`
+    (a 40th of the vehicle's range; both ends included; one speed for a ride at constant speed). Sizing a
+    ride's step at its own speeds keeps ``|lambda h|`` of every mode it meets within :data:`MAX_LAMBDA_H`
+    without paying, at 50 km/h, for a tire lag (``~vx / sigma``) met only at the top of the range."""
+    v = np.asarray(speeds, dtype=float).ravel()
+    if not v.size or not np.all(np.isfinite(v)):
+        raise SimulationInputError(f"speeds must be finite numbers of m/s, got {speeds!r}")
+    lo, hi = float(v.min()), float(v.max())
+    span = max(vehicle.vmax - vehicle.vmin, 1e-9)
+    n = 1 if hi - lo <= 1e-9 else 1 + max(1, math.ceil(40 * (hi - lo) / span - 1e-9))
+    return np.linspace(lo, hi, n)
+
+
 def substeps_for(dt: float, max_substep: float = DEFAULT_SUBSTEP, vehicle: Vehicle | None = None,
-                 extra_rate: float = 0.0) -> int:
+                 extra_rate: float = 0.0, speeds=None) -> int:
     """Number of RK4 substeps per control period ``dt`` [s] so that each is at most ``max_substep``
     and, for ``vehicle``, at most ``MAX_LAMBDA_H / max(vehicle.fastest_eigenvalue, extra_rate)``
-    (``extra_rate`` [1/s]: a faster mode a model extension adds, :func:`plant_rate`)."""
+    (``extra_rate`` [1/s]: a faster mode a model extension adds, :func:`plant_rate`); given ``speeds``
+    [m/s] (those a ride meets), the vehicle's fastest mode at those speeds (:func:`speed_grid`) instead of
+    over its whole range (``extra_rate`` should then be taken at the same speeds)."""
     if not (dt > 0 and math.isfinite(dt)):
         raise SimulationInputError(f"dt must be a positive number of seconds, got {dt!r}")
     if vehicle is not None:
-        max_substep = min(max_substep, MAX_LAMBDA_H / max(vehicle.fastest_eigenvalue, float(extra_rate)))
+        own = vehicle.fastest_eigenvalue if speeds is None else vehicle.fastest_rate(speed_grid(vehicle, speeds))
+        max_substep = min(max_substep, MAX_LAMBDA_H / max(own, float(extra_rate)))
     return max(1, math.ceil(dt / max_substep - 1e-9))
 
 
@@ -52,14 +70,16 @@ def plant_rate(plant: Plant) -> float:
     return float(np.max(np.abs(col))) / kernels.COULOMB_WIDTH if col.size else 0.0
 
 
-def linear_rate(plant: Plant) -> np.ndarray:
+def linear_rate(plant: Plant, speeds=None) -> np.ndarray:
     """Largest ``|eig|`` [1/s] of ``plant`` linearised at the upright (:func:`ptw_env.dynamics.linearise`; a
-    Coulomb force's slope ``Tc / w`` included) at its vehicle's lowest, middle and highest speed, one per plant
-    of a batch: the stiffest mode of a plant whose effects (a short relaxation length, a stiff damper) may be
-    faster than its vehicle's (:attr:`ptw_env.vehicle.Vehicle.fastest_eigenvalue`)."""
+    Coulomb force's slope ``Tc / w`` included) at its vehicle's lowest, middle and highest speed (or at
+    :func:`speed_grid` of ``speeds`` [m/s], those a ride meets), one per plant of a batch: the stiffest mode
+    of a plant whose effects (a short relaxation length, a stiff damper) may be faster than its vehicle's
+    (:attr:`ptw_env.vehicle.Vehicle.fastest_eigenvalue`)."""
     v = plant.vehicle
     rate = np.zeros(plant.batch_shape)
-    for vx in (v.vmin, 0.5 * (v.vmin + v.vmax), v.vmax):
+    grid = (v.vmin, 0.5 * (v.vmin + v.vmax), v.vmax) if speeds is None else speed_grid(v, speeds)
+    for vx in grid:
         A, _ = linearise(plant, vx)
         rate = np.maximum(rate, np.abs(np.linalg.eigvals(A)).max(axis=-1))
     return rate
@@ -185,19 +205,20 @@ class Stepper:
 
     Keeps the compiled plant's arrays so that a step costs one kernel call. ``substeps`` default: sized for the
     plant's own fastest linearised mode (:func:`linear_rate`: its effects, e.g. a short relaxation length, may
-    be faster than its vehicle) and its vehicle's (:func:`substeps_for`). (:func:`simulate` still sizes from
+    be faster than its vehicle) and its vehicle's (:func:`substeps_for`), over the vehicle's speed range or at
+    ``speeds`` [m/s] (those a ride meets, :func:`speed_grid`). (:func:`simulate` still sizes from
     the vehicle and Coulomb friction only, :func:`plant_rate`: the ride logs and the diagnosis replays keep
     their step.)
     """
 
     __slots__ = ("plant", "dt", "nsub", "_W", "_inv_sigma", "_fmax", "_bank")
 
-    def __init__(self, plant: Plant, dt: float = 0.01, substeps: int | None = None) -> None:
+    def __init__(self, plant: Plant, dt: float = 0.01, substeps: int | None = None, speeds=None) -> None:
         if plant.batch_shape:
             raise SimulationInputError("Stepper takes an unbatched plant")
         self.plant = plant
         self.dt = float(dt)
-        self.nsub = (substeps_for(dt, vehicle=plant.vehicle, extra_rate=float(linear_rate(plant)))
+        self.nsub = (substeps_for(dt, vehicle=plant.vehicle, extra_rate=float(linear_rate(plant, speeds)), speeds=speeds)
                      if substeps is None else int(substeps))
         W, s, f, b = plant.flat()
         self._W, self._inv_sigma, self._fmax, self._bank = W[0], s[0], f[0], float(b[0])

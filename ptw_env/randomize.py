@@ -37,11 +37,12 @@ A description maps a *key* to a *distribution*. Keys:
   (:data:`ptw_env.sensors.CHANNELS`).
 
 The RK4 substeps of an environment with ``randomize=`` keep ``|lambda h|`` of the fastest drawable plant
-inside :data:`ptw_env.integrate.MAX_LAMBDA_H` (:meth:`Randomization.stiffest_rate`): a randomised short
-relaxation length or Coulomb friction integrates with more substeps, for every episode (one step for all the
-envs of a vector env); so does a draw only slightly faster than the nominal vehicle when that one sits at the
-edge of a substep count (the reference scooter's 185.6 1/s at 40 m/s takes 4 substeps, a tire stiffness
-drawn 0.8x makes 188.4 and 5).
+inside :data:`ptw_env.integrate.MAX_LAMBDA_H` (:meth:`Randomization.stiffest_rate`) at the speeds of each
+ride (:func:`ptw_env.integrate.speed_grid`; the vehicle's whole range with ``randomize_course``): a randomised
+short relaxation length or Coulomb friction integrates with more substeps, for every episode of that ride;
+so does a draw only slightly faster than the nominal vehicle when that one sits at the edge of a substep
+count (the reference scooter's 185.6 1/s at 40 m/s takes 4 substeps, a tire stiffness drawn 0.8x makes
+188.4 and 5; at 50 km/h the same draws keep the 2.5 ms step, 4 substeps).
 
 Distributions: a number (fixed), ``("uniform", low, high)``, ``("loguniform", low, high)``,
 ``("normal", mean, std)`` or ``("normal", mean, std, low, high)`` (clipped to ``[low, high]``; ``None`` for
@@ -350,10 +351,11 @@ class Randomization:
                 out[param] = np.asarray(v, dtype=float) * getattr(vehicle.parameters, param)
         return out
 
-    def check_vehicle(self, vehicle: Any) -> float:
+    def check_vehicle(self, vehicle: Any, speeds=None) -> float:
         """Check every vehicle the description can draw from ``vehicle`` (module docstring: the corners of
         the supports of the vehicle keys) and return their fastest linearised mode [1/s]
-        (:func:`ptw_env.integrate.linear_rate` of the corner vehicles' plants; 0 without vehicle keys).
+        (:func:`ptw_env.integrate.linear_rate` of the corner vehicles' plants, over the vehicle's range or
+        at ``speeds`` [m/s], those a ride meets; 0 without vehicle keys).
 
         Raises
         ------
@@ -398,7 +400,7 @@ class Randomization:
         except SharpParameterError as exc:
             raise RandomizationError(f"randomize: {', '.join(keys)} can draw a vehicle that is not one (at the "
                                      f"ends of their ranges): {exc}") from None
-        return float(np.max(linear_rate(compile_plant(vehicle, model=model))))
+        return float(np.max(linear_rate(compile_plant(vehicle, model=model), speeds)))
 
     def forces(self, samples: Mapping[str, Any]) -> list[tuple[str, str, Any]]:
         """The sampled generalised forces ``(equation, feature, coefficient)``."""
@@ -431,13 +433,14 @@ class Randomization:
             out[k] = hi if abs(hi) >= abs(lo) else lo
         return out
 
-    def stiffest_rate(self, vehicle: Any, base: Effects) -> float:
+    def stiffest_rate(self, vehicle: Any, base: Effects, speeds=None) -> float:
         """Fastest rate [1/s] of the plants at the ends of the ranges, which the environment sizes its RK4
         substeps for: :meth:`extreme_samples`, and each key at each end of its support with the others there
         (which end is the stiffer depends on the key: a short relaxation length makes a fast tire lag, a
         large Coulomb friction a fast steer mode). Per plant, the largest ``|eig|`` of the plant linearised at
         the upright (:func:`ptw_env.dynamics.linearise`; Coulomb friction's slope ``Tc / w`` included) at the
-        vehicle's lowest, middle and highest speed. These are 1 + 2k plants, not every combination of ends:
+        vehicle's lowest, middle and highest speed (or at ``speeds`` [m/s], those a ride meets:
+        :func:`ptw_env.integrate.linear_rate`). These are 1 + 2k plants, not every combination of ends:
         two keys whose stiffer ends are both the ends nearer 0 are not combined (the vehicle keys' corners
         are, :meth:`check_vehicle`)."""
         extreme = self.extreme_samples()
@@ -446,7 +449,7 @@ class Randomization:
             lo, hi = d.tails
             rows += [{**extreme, k: lo}, {**extreme, k: hi}]
         plant = self.plant(vehicle, base, {k: np.array([r[k] for r in rows]) for k in self.dists})
-        return float(np.max(linear_rate(plant)))
+        return float(np.max(linear_rate(plant, speeds)))
 
     def sample(self, rng: np.random.Generator) -> dict[str, float]:
         """One episode's values: one call ``rng.random(len(keys))``, mapped by each key's inverse transform
@@ -462,7 +465,17 @@ class Randomization:
     def sample_table(self, rngs: "list[np.random.Generator]") -> np.ndarray:
         """:meth:`sample_many` as one array ``(len(rngs), len(keys))``, columns in key order: the inverse
         transforms (:func:`inverse_transform`) applied to all the keys of a kind at once."""
-        u = np.array([rng.random(len(self.dists)) for rng in rngs]).reshape(len(rngs), len(self.dists))
+        return self.from_uniforms(self.uniforms(rngs))
+
+    def uniforms(self, rngs: "list[np.random.Generator]") -> np.ndarray:
+        """The draws of :meth:`sample_table` before their inverse transforms: one ``random(number of keys)`` per
+        generator, shape ``(len(rngs), len(keys))`` (the vector env draws these at a reset and maps many envs'
+        together, :meth:`from_uniforms`)."""
+        return np.array([rng.random(len(self.dists)) for rng in rngs]).reshape(len(rngs), len(self.dists))
+
+    def from_uniforms(self, u: np.ndarray) -> np.ndarray:
+        """The values of :meth:`sample_table` from its uniform draws ``u`` (:meth:`uniforms`), columns in key
+        order."""
         out = np.empty_like(u)
         for kind, (cols, a, b, lo, hi) in self._by_kind.items():
             if kind == "choice":

@@ -87,6 +87,7 @@ def ride_scenario(
     downhill on a banked straight (a yaw rate of -0.5 to -0.6 times the bank [rad/s] on the
     reference scooter's urban rides, measured through ``assist.risk.BankEstimate``).
     """
+    env_kwargs.setdefault("step_speeds", "vehicle")  # the logs' step: sized for the vehicle's range (env docstring)
     env = PTWRollEnv(scenario=scenario, speed_kmh=speed_kmh, effects=effects, noise_pct=noise_pct,
                      sensors=sensors, **env_kwargs)
     prior = env.get_prior()

@@ -79,7 +79,7 @@ def vector_step(actions, mode, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, d
     others); every env of mode 1 or 2 is then observed (sensors, observation clipped to ``obs_hi``), in ``nth`` chunks of envs (one per
     thread, each with its own work arrays). Per env ``i``: state ``x[i]``, sample ``k[i]``, plant ``pidx[i]``
     of ``W`` etc., ride ``prof[i]`` of the speed and reference profiles ``vx_prof``, ``ref_prof`` (rides x
-    samples) and of ``max_steps``. Everything else as :class:`PTWRollEnv.step`."""
+    samples), of ``max_steps`` and of the RK4 substeps ``nsub``. Everything else as :class:`PTWRollEnv.step`."""
     N = x.shape[0]
     chunk = (N + nth - 1) // nth
     for th in prange(nth):
@@ -104,7 +104,7 @@ def vector_step(actions, mode, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, d
                 prev = aprev[i]
                 a = actuate(tau, abuf[i], kk, prev, alpha, rate_step, alimit)
                 aprev[i] = a
-                finite = advance(x[i], a, vx_prof[pr, kk], 0.0, W[p], inv_sigma[p], fmax[p], bank[p], dt, nsub,
+                finite = advance(x[i], a, vx_prof[pr, kk], 0.0, W[p], inv_sigma[p], fmax[p], bank[p], dt, nsub[pr],
                                  M, c, g, ks)
                 phi = x[i, 0]
                 k1 = kk + 1
@@ -187,8 +187,10 @@ class PTWRollVectorEnv(VectorEnv):
         self.randomization = tpl.randomization
         self.dt = tpl.dt
 
-        # the plant: one shared, or one per env when randomisation changes it
-        self.nsub = tpl.substeps
+        # the plant: one shared, or one per env when randomisation changes it (the next episode's compiled ahead
+        # into _nW etc., copied in at the reset); RK4 substeps per ride (profile 2 j + mirrored: the single
+        # env's ride_substeps)
+        self.nsub = np.repeat(np.asarray(tpl.ride_substeps, dtype=np.int64), 2)
         per_env = self.randomization is not None and self.randomization.changes_plant
         W, s, f, b = tpl.plant.flat()
         K = n if per_env else 1
@@ -199,6 +201,9 @@ class PTWRollVectorEnv(VectorEnv):
         self._mass = np.full(K, float(tpl.plant.mass))
         self._fz = np.repeat(tpl.plant.fz[None], K, axis=0)
         self._pidx = np.arange(n) if per_env else np.zeros(n, dtype=np.int64)
+        if per_env:
+            self._nW, self._ns, self._nf = self._W.copy(), self._inv_sigma.copy(), self._fmax.copy()
+            self._nb, self._nmass, self._nfz = self._bank.copy(), self._mass.copy(), self._fz.copy()
         sm = tpl.sensor_model
         self._n_delay, self._frac, self._q, self._q_first, self._gps_step = (
             sm.n_delay, sm.frac_delay, sm.quantum, sm.quantise_first, sm.gps_step)
@@ -238,15 +243,12 @@ class PTWRollVectorEnv(VectorEnv):
         self._randomized = {key: self._rtable[:, j] for j, key in enumerate(keys)}
         # randomisation: each env draws its next episode's values at a reset; they are compiled in batches
         # of COMPILE_BATCH envs (or at the reset that needs them) into these next-episode tables
-        self._next = np.zeros((n, len(keys)))  # the next episode's, drawn at the last reset
-        self._drawn = np.zeros(n, dtype=np.bool_)
+        self._next = np.zeros((n, len(keys)))  # the next episode's, drawn at the last reset (compiled: values)
+        self._next_u = np.zeros((n, len(keys)))  # ... as drawn: uniforms, mapped to values when compiled
         self._pending = np.zeros(n, dtype=np.bool_)
         self._per_env_plant = per_env
         self._sensor_keys = self.randomization is not None and any(
             k.startswith("sensor") or k.partition(":")[0] in ("gyro_bias", "ay_frame") for k in self.randomization.keys)
-        if per_env:
-            self._nW, self._ns, self._nf = self._W.copy(), self._inv_sigma.copy(), self._fmax.copy()
-            self._nb, self._nmass, self._nfz = self._bank.copy(), self._mass.copy(), self._fz.copy()
         if self._sensor_keys:
             self._noff, self._nstd, self._ngain = self._offset.copy(), self._std.copy(), self._gain.copy()
         self._batch = min(n, COMPILE_BATCH)
@@ -297,13 +299,12 @@ class PTWRollVectorEnv(VectorEnv):
                 self._prof[i] = 2 * j + int(m)
         rnd = self.randomization
         if rnd is not None:
-            if seeds is not None:  # new generators: what the old ones drew for the next episode is void
-                self._drawn[idx] = False
-            self._draw(idx[~self._drawn[idx]])  # this episode's values (first reset, new seed)
+            if seeds is not None:  # new generators (also the first reset): what the old ones drew is void;
+                self._draw(idx)  # this episode's values first
             if self._pending[idx].any():
                 self._compile_pending()
             self._rtable[idx] = self._next[idx]
-            if self._per_env_plant:
+            if self._per_env_plant:  # the next episode's plant, compiled ahead
                 self._W[idx], self._inv_sigma[idx], self._fmax[idx] = self._nW[idx], self._ns[idx], self._nf[idx]
                 self._bank[idx], self._mass[idx], self._fz[idx] = self._nb[idx], self._nmass[idx], self._nfz[idx]
             if self._sensor_keys:
@@ -329,11 +330,12 @@ class PTWRollVectorEnv(VectorEnv):
 
     def _draw(self, idx: np.ndarray) -> None:
         """Draw the next episode's randomised values of the envs ``idx`` from their generators (one
-        ``random(number of keys)`` each, :meth:`ptw_env.randomize.Randomization.sample_many`)."""
+        ``random(number of keys)`` each, :meth:`ptw_env.randomize.Randomization.uniforms`; mapped to values
+        with the other pending envs' when compiled, :meth:`_compile_pending`: what
+        :meth:`~ptw_env.randomize.Randomization.sample_many` gives)."""
         if not len(idx):
             return
-        self._next[idx] = self.randomization.sample_table([self._rngs[i] for i in idx])
-        self._drawn[idx] = True
+        self._next_u[idx] = self.randomization.uniforms([self._rngs[i] for i in idx])
         self._pending[idx] = True
 
     def _compile_pending(self) -> None:
@@ -344,6 +346,7 @@ class PTWRollVectorEnv(VectorEnv):
         if not len(idx):
             return
         rnd, tpl = self.randomization, self.template
+        self._next[idx] = rnd.from_uniforms(self._next_u[idx])
         samples = {key: self._next[idx, j] for j, key in enumerate(rnd.keys)}
         eff = rnd.effects(tpl.effects, samples)
         if self._per_env_plant:

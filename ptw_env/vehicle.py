@@ -218,8 +218,14 @@ class Vehicle:
         stiffest mode of the linearised vehicle, which sets the integration step
         (:func:`ptw_env.integrate.substeps_for`). Reference scooter: 186 at 40 m/s (the front tire lag,
         ~vx/sigma); robot bicycle: ~100 at every speed (its lateral-tire oscillation)."""
-        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(v))).max()
-                         for v in np.linspace(self.vmin, self.vmax, 41)))
+        return self.fastest_rate(np.linspace(self.vmin, self.vmax, 41))
+
+    def fastest_rate(self, speeds) -> float:
+        """``max |eig(E^-1 A(vx))|`` [1/s] over the given speeds [m/s]: the stiffest mode met at those
+        speeds (:attr:`fastest_eigenvalue` is this over the whole range; an environment sizes its step
+        for the speeds its rides reach, :func:`ptw_env.integrate.speed_grid`)."""
+        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(float(v)))).max()
+                         for v in np.atleast_1d(np.asarray(speeds, dtype=float))))
 
     @property
     def steer_torque_scale(self) -> float:

@@ -15,10 +15,13 @@ Prints:
   quarter more per step than the default linear tire, whether randomised or not, so that is the like-for-like
   reference; and at the substeps the randomised env uses, ``substeps=``: drawing a plant faster than the
   fixed one makes the env integrate with more RK4 substeps, a cost of the physics drawn, not of the reset,
-  so both are printed), over 320 steps with 0, 1 or 10 envs reset before every step through
+  so both are printed; the env sizes its step for the ride's speeds, 50 km/h here, where the drawn plants
+  need no extra substep), over 3 x 320 steps with 0, 1 or 10 envs reset before every step through
   ``reset(options={"reset_mask": ...})`` (the same schedule for both, whatever the episodes do; a 20 s
   episode at N = 1024 resets 0.5 env a step on average, 10 a step is a policy that falls every 2 s; each
-  such reset also runs one kernel pass, in both); the ends of episodes besides (falls) are printed;
+  such reset also runs one kernel pass, in both; the three envs timed step by step in turn, so that a
+  drift of the machine's speed falls on all alike); the
+  ends of episodes besides (falls) are printed;
   also whole 20 s episodes with random torques, with the resets each run had (not like for like: the
   randomised vehicles fall more often, and a fall is an early reset);
 * the same with the vehicle itself randomised too (``vehicle_scale:`` keys on the ``sharp1971`` vehicle file:
@@ -62,6 +65,10 @@ RANDOMIZE = {
 }
 #: Resets before every step in the like-for-like runs (a 20 s episode at N = 1024 averages 0.5 a step).
 RESETS_PER_STEP = (0, 1, 10)
+#: Rounds of the like-for-like runs (:func:`paired_rates`), all timed.
+ROUNDS = 3
+#: Timed steps of each round (5 rotations of the 64-step reset schedule), from the episodes' start.
+LIKE_STEPS = 320
 #: The vehicle's own parameters (Table V names, SI), drawn on top of :data:`RANDOMIZE` on a vehicle file.
 VEHICLE_RANDOMIZE = {
     "vehicle_scale:M_r": ("uniform", 0.8, 1.3),
@@ -73,12 +80,9 @@ VEHICLE_RANDOMIZE = {
 VEHICLE = "sharp1971"
 
 
-def rate(envs, steps: int, repeats: int, seed: int = 0, scale: float = 0.1,
-         resets_per_step: int = 0) -> tuple[float, float]:
-    """Best-of-``repeats`` env-steps/s over ``steps`` steps of random actions (after a warm-up), and the
-    episode ends per step in that run (each an autoreset at the next step). ``resets_per_step``: that many
-    envs (a fixed rotation, the same in every run) reset before each step through
-    ``reset(options={"reset_mask": ...})``, a schedule that does not depend on the episodes."""
+def schedule(envs, seed: int, scale: float, resets_per_step: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """64 steps' random actions for ``envs`` (uniform over the action box times ``scale``; a discrete space's
+    actions uniform) and, with ``resets_per_step``, the 64 reset masks of a fixed rotation over the envs."""
     n = envs.num_envs
     rng = np.random.default_rng(seed)
     box = envs.single_action_space
@@ -91,6 +95,17 @@ def rate(envs, steps: int, repeats: int, seed: int = 0, scale: float = 0.1,
         m = np.zeros(n, dtype=bool)
         m[(t * resets_per_step + np.arange(resets_per_step)) % n] = True
         masks.append(m)
+    return acts, masks
+
+
+def rate(envs, steps: int, repeats: int, seed: int = 0, scale: float = 0.1,
+         resets_per_step: int = 0) -> tuple[float, float]:
+    """Best-of-``repeats`` env-steps/s over ``steps`` steps of random actions (after a warm-up), and the
+    episode ends per step in that run (each an autoreset at the next step). ``resets_per_step``: that many
+    envs (a fixed rotation, the same in every run) reset before each step through
+    ``reset(options={"reset_mask": ...})``, a schedule that does not depend on the episodes."""
+    n = envs.num_envs
+    acts, masks = schedule(envs, seed, scale, resets_per_step)
     envs.reset(seed=seed)
     for t in range(5):
         envs.step(acts[t % 64])
@@ -107,6 +122,35 @@ def rate(envs, steps: int, repeats: int, seed: int = 0, scale: float = 0.1,
         if r > best:
             best, ends = r, e / steps
     return best, ends
+
+
+def paired_rates(envs: dict, steps: int, rounds: int, resets_per_step: int, seed: int = 0,
+                 scale: float = 0.1) -> dict[str, tuple[float, float]]:
+    """env-steps/s and episode ends per step of each of ``envs`` (name -> vector env, all of one size), timed
+    step by step in turn (the order rotating each step) over ``rounds`` x ``steps`` steps, with the reset
+    schedule of :func:`rate`: a drift of the machine's speed (other processes, clock) then falls on all of them
+    alike, which separate runs seconds apart do not ensure."""
+    names = list(envs)
+    n = envs[names[0]].num_envs
+    acts, masks = schedule(envs[names[0]], seed, scale, resets_per_step)
+    spent = dict.fromkeys(names, 0.0)
+    ends = dict.fromkeys(names, 0)
+    for _ in range(rounds):
+        for e in envs.values():  # each round from the same episode starts (the first 320 steps: few falls)
+            e.reset(seed=seed)
+            for t in range(5):
+                e.step(acts[t % 64])
+        for t in range(steps):
+            j = t % len(names)
+            for name in names[j:] + names[:j]:
+                e = envs[name]
+                t0 = time.perf_counter()
+                if masks:
+                    e.reset(options={"reset_mask": masks[t % 64]})
+                _, _, term, trunc, _ = e.step(acts[t % 64])
+                spent[name] += time.perf_counter() - t0
+                ends[name] += int(np.sum(term | trunc))
+    return {name: (n * steps * rounds / spent[name], ends[name] / (steps * rounds)) for name in names}
 
 
 def main() -> None:
@@ -137,13 +181,17 @@ def main() -> None:
                            randomize=rnd_spec, **extra)
         fixed = gym.make_vec("PTWRoll-v0", num_envs=1024, vectorization_mode="vector_entry_point", effects=base, **extra)
         same = gym.make_vec("PTWRoll-v0", num_envs=1024, vectorization_mode="vector_entry_point", effects=base,
-                            substeps=rnd.unwrapped.nsub, **extra)
-        res[f"substeps_{label}"] = [fixed.unwrapped.nsub, rnd.unwrapped.nsub]
-        for kind, envs in (("fixed", fixed), ("same", same), ("randomized", rnd)):
+                            substeps=int(rnd.unwrapped.nsub.max()), **extra)
+        res[f"substeps_{label}"] = [int(fixed.unwrapped.nsub.max()), int(rnd.unwrapped.nsub.max())]
+        kinds = (("fixed", fixed), ("same", same), ("randomized", rnd))
+        for kind, envs in kinds:
             res[f"{kind}_{label}_episodes"], res[f"{kind}_{label}_ends_per_step"] = rate(envs, steps, repeats)
-            for r in RESETS_PER_STEP:
-                res[f"{kind}_{label}_reset{r}"], res[f"{kind}_{label}_reset{r}_ends"] = rate(
-                    envs, min(steps, 320), repeats, resets_per_step=r)
+        # the like-for-like runs timed step by step in turn (paired_rates): the machine's speed drifts by
+        # several per cent between runs a few seconds apart
+        for r in RESETS_PER_STEP:
+            got = paired_rates(dict(kinds), min(steps, LIKE_STEPS), 1 if args.quick else ROUNDS, r)
+            for kind, _ in kinds:
+                res[f"{kind}_{label}_reset{r}"], res[f"{kind}_{label}_reset{r}_ends"] = got[kind]
     n1024 = res["native"][1024]
     print("native vector env (PTWRoll-v0, sensors, reward, cost, autoreset):")
     for n, r in res["native"].items():
@@ -166,6 +214,11 @@ def main() -> None:
                   f"{res[f'same_{label}_reset{r}_ends']:.2f} ends a step): {rr:,.0f} vs {f:,.0f} env-steps/s at the same "
                   f"substeps: costs {100 * cost:.1f} % (target <= 10 %); against the fixed model at its own "
                   f"{nf} substeps ({fo:,.0f}): {100 * total:.1f} %")
+        if nf == nr:  # then "fixed" and "same" are one configuration: how far apart they came is the noise
+            gap = max(abs(1.0 - res[f"same_{label}_reset{r}"] / res[f"fixed_{label}_reset{r}"]) for r in RESETS_PER_STEP)
+            res[f"noise_{label}"] = gap
+            print(f"  (the fixed model at its own and at the same substeps is one configuration here, measured "
+                  f"twice: up to {100 * gap:.1f} % apart, the noise of these figures)")
         ef, er = res[f"fixed_{label}_ends_per_step"], res[f"randomized_{label}_ends_per_step"]
         print(f"  whole 20 s episodes, random torques (not like for like: {er:.2f} vs {ef:.2f} ends a step): "
               f"{res[f'randomized_{label}_episodes']:,.0f} vs {res[f'fixed_{label}_episodes']:,.0f} env-steps/s")

@@ -370,7 +370,7 @@ def test_environment_steps_the_built_vehicle():
         assert np.all(np.isfinite(obs)) and not terminated
     u = env.unwrapped
     assert u.vehicle is SHARP
-    expected = simulate(x0, np.zeros(n), u.profile.vx[:n], vehicle=SHARP)[-1]
+    expected = simulate(x0, np.zeros(n), u.profile.vx[:n], vehicle=SHARP, substeps=u.substeps)[-1]
     np.testing.assert_allclose(u.state, expected, rtol=1e-9, atol=1e-12)
 
 

@@ -16,6 +16,7 @@ import ptw_env  # noqa: F401  (registers the ids)
 from ptw_env.env import EnvConfigError, PTWRollEnv
 from ptw_env.episode import Actuator, CostConfig
 from ptw_env.randomize import Randomization, RandomizationError
+from ptw_env.scenarios import make_scenario
 from ptw_env.vector import PTWRollVectorEnv
 
 
@@ -24,7 +25,7 @@ def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_sc
     """Step a vector env and single envs with the same random actions (single env i reset with seed
     seed + i, then without a seed at each episode end, as NEXT_STEP autoreset does), for the envs ``check``
     (default all n). Returns the largest difference of observation, reward, state and cost, the number of
-    episode ends and of steps compared."""
+    episode ends and the rides (pool indices) the checked envs stepped on."""
     venv = PTWRollVectorEnv(num_envs=n, **kwargs)
     check = tuple(range(n)) if check is None else check
     singles = {i: PTWRollEnv(**kwargs) for i in check}
@@ -36,6 +37,7 @@ def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_sc
     rng = np.random.default_rng(seed)
     done = np.zeros(n, dtype=bool)
     ends = 0
+    rides: set[int] = set()
     for _ in range(steps):
         a = (rng.uniform(0.0, 1.0, (n, 1)) * action_scale).astype(np.float32)  # leans one way: falls
         obs, rew, term, trunc, info = venv.step(a)
@@ -50,13 +52,14 @@ def replay_against_single(kwargs: dict, n: int, steps: int, seed: int, action_sc
                     ends += 1
                     assert info["reason"][i] == inf["reason"]
             assert (te, tr) == (term[i], trunc[i])
+            rides.add(int(inf.get("ride", 0)))
             done[i] = te or tr
             diff = max(diff, float(np.max(np.abs(o - obs[i]))), abs(r - rew[i]),
                        float(np.max(np.abs(inf["state"] - info["state"][i]))), abs(cost - info["cost"][i]))
-    return diff, ends, steps
+    return diff, ends, rides
 
 
-@pytest.mark.parametrize("case", ["default", "effects_actuator", "randomized", "rides", "vehicle"])
+@pytest.mark.parametrize("case", ["default", "effects_actuator", "randomized", "rides", "rides_substeps", "vehicle"])
 def test_env_i_equals_single_env_through_resets(case):
     """Same seeds, same actions: env i of the vector env and a single env agree to round-off, including
     across episode ends (falls under random torques) and autoresets."""
@@ -74,15 +77,24 @@ def test_env_i_equals_single_env_through_resets(case):
                                  "sensor_bias:ay": ("uniform", -0.1, 0.1)})
     elif case == "rides":  # a ride drawn per episode from a pool, mirrored half of the time
         kwargs.update(scenario_pool=["slalom", "double_lane_change"], mirror=True)
+    elif case == "rides_substeps":  # two rides at other speeds: each its own RK4 substeps (a randomised short
+        # relaxation length's tire lag ~vx/sigma is fast at 120 km/h, not at 30)
+        kwargs = {"scenario_pool": [make_scenario("double_lane_change", speed_kmh=30), make_scenario("double_lane_change", speed_kmh=120)],
+                  "randomize": {"relaxation_length:sigma_m": ("uniform", 0.05, 0.2)}}
+        subs = PTWRollEnv(**kwargs).ride_substeps
+        assert subs[1] > subs[0], subs
+        assert list(PTWRollVectorEnv(num_envs=2, **kwargs).nsub) == [subs[0], subs[0], subs[1], subs[1]]
     elif case == "vehicle":  # the vehicle's own masses, geometry and inertias drawn, on saturating tires
         kwargs.update(vehicle="sharp1971", effects={"tire_saturation": {"mu_peak": 0.7}},
                       randomize={"vehicle:M_r": ("uniform", 150.0, 300.0), "vehicle_scale:I_rx": ("uniform", 0.8, 1.2),
                                  "vehicle:h": ("normal", 0.6, 0.05, 0.5, 0.7), "vehicle_scale:C_f1": ("uniform", 0.7, 1.3)})
         scale = 1.2 * ptw_env.load_vehicle("sharp1971").torque_ratio * 60.0
-    diff, ends, _ = replay_against_single(kwargs, n=3, steps=600, seed=11, action_scale=scale)
+    diff, ends, rides = replay_against_single(kwargs, n=3, steps=600, seed=11, action_scale=scale)
     assert ends >= 3, "the replay must cross episode ends to test the autoreset"
+    if case in ("rides", "rides_substeps"):
+        assert rides == {0, 1}, "the replay must step on both rides"
     # compiled batched plants (randomised) differ from one-by-one ones only by round-off
-    assert diff <= (1e-9 if case in ("randomized", "vehicle") else 0.0)
+    assert diff <= (1e-9 if case in ("randomized", "rides_substeps", "vehicle") else 0.0)
 
 
 def test_randomised_next_episodes_compiled_in_batches_keep_env_i_equal_to_a_single_env():
@@ -328,40 +340,76 @@ def test_vehicle_randomization_draws_the_vehicle_of_those_parameters():
 
 
 def test_vehicle_randomization_sizes_the_step_for_the_fastest_drawn_vehicle():
-    """Short relaxation lengths make faster tire lags (vx/sigma): the substeps follow the fastest corner,
-    computed here from vehicles built by hand."""
+    """Short relaxation lengths make faster tire lags (vx/sigma): the substeps follow the fastest corner at
+    the ride's speeds, computed here from vehicles built by hand."""
     from dataclasses import replace
 
-    from ptw_env.integrate import substeps_for
+    from ptw_env.integrate import speed_grid, substeps_for
     from ptw_env.sharp import sharp_vehicle
     from ptw_env.vehicle_files import load_parameters
 
     p = load_parameters("sharp1971")
     nominal = ptw_env.load_vehicle("sharp1971")
     r = {"vehicle:sigma_f": ("uniform", 0.05, 0.3), "vehicle_scale:sigma_r": ("uniform", 0.25, 1.0)}
-    env = PTWRollEnv(vehicle="sharp1971", randomize=r)
-    rates = [sharp_vehicle(replace(p, sigma_f=sf, sigma_r=p.sigma_r * sr), "x", nominal.vmin, nominal.vmax).fastest_eigenvalue
-             for sf in (0.05, 0.3) for sr in (0.25, 1.0)]
-    assert max(rates) > 2 * nominal.fastest_eigenvalue
-    assert env.substeps == substeps_for(env.dt, vehicle=nominal, extra_rate=max(rates)) > PTWRollEnv(vehicle="sharp1971").substeps
+    for kmh in (50, 120):
+        env = PTWRollEnv(vehicle="sharp1971", randomize=r, speed_kmh=kmh)
+        speeds = speed_grid(nominal, env.profile.vx)
+        rates = [sharp_vehicle(replace(p, sigma_f=sf, sigma_r=p.sigma_r * sr), "x", nominal.vmin, nominal.vmax).fastest_rate(speeds)
+                 for sf in (0.05, 0.3) for sr in (0.25, 1.0)]
+        assert max(rates) > 2 * nominal.fastest_rate(speeds)
+        assert env.substeps == substeps_for(env.dt, vehicle=nominal, extra_rate=max(rates), speeds=env.profile.vx) \
+            > PTWRollEnv(vehicle="sharp1971", speed_kmh=kmh).substeps
 
 
 def test_randomised_effects_size_the_step_for_the_stiffest_plant():
     """A short relaxation length makes a fast tire lag (vx / sigma): the env's substeps keep |lambda h| of the
-    stiffest drawable plant (sigma = 0.02 m at 40 m/s) inside the RK4 accuracy bound, computed here from that
-    plant's own eigenvalues, and so do a fixed effect's; ``substeps=`` raises the count, never lowers it."""
-    from ptw_env.integrate import MAX_LAMBDA_H
+    stiffest drawable plant (sigma = 0.02 m) at the ride's top speed inside the RK4 accuracy bound, computed
+    here from that plant's own eigenvalues, and so do a fixed effect's; a slower ride takes fewer (the step
+    is sized for the speeds ridden, not the vehicle's top speed); ``substeps=`` raises the count, never
+    lowers it."""
+    from ptw_env.integrate import DEFAULT_SUBSTEP, MAX_LAMBDA_H
 
-    env = PTWRollEnv(randomize={"relaxation_length:sigma_m": ("uniform", 0.02, 0.2)})
-    A, _ = ptw_env.linearise(ptw_env.compile_plant(None, {"relaxation_length": {"sigma_m": 0.02}}), env.vehicle.vmax)
-    lam = float(np.abs(np.linalg.eigvals(A)).max())
-    assert lam > 5 * env.vehicle.fastest_eigenvalue
-    assert lam * env.dt / env.substeps <= MAX_LAMBDA_H < lam * env.dt / (env.substeps - 1)
-    # the same plant as a fixed effect gets the same step (it used to keep the vehicle's 4 substeps)
-    assert PTWRollEnv(effects={"relaxation_length": {"sigma_m": 0.02}}).substeps == env.substeps
+    rnd = {"relaxation_length:sigma_m": ("uniform", 0.02, 0.2)}
+    stiff = ptw_env.compile_plant(None, {"relaxation_length": {"sigma_m": 0.02}})
+    counts = {}
+    for kmh in (40, 140):
+        env = PTWRollEnv(randomize=rnd, speed_kmh=kmh)
+        A, _ = ptw_env.linearise(stiff, float(env.profile.vx.max()))
+        lam = float(np.abs(np.linalg.eigvals(A)).max())
+        assert lam > 5 * env.vehicle.fastest_rate(env.profile.vx)
+        assert lam * env.dt / env.substeps <= MAX_LAMBDA_H < lam * env.dt / (env.substeps - 1)
+        # the same plant as a fixed effect gets the same step (it used to keep the vehicle's 4 substeps)
+        assert PTWRollEnv(effects={"relaxation_length": {"sigma_m": 0.02}}, speed_kmh=kmh).substeps == env.substeps
+        counts[kmh] = env.substeps
+    assert counts[40] < counts[140]
+    # the top of the range: what every ride took before the step followed the ride's speeds
+    A, _ = ptw_env.linearise(stiff, env.vehicle.vmax)
+    assert float(np.abs(np.linalg.eigvals(A)).max()) * env.dt / counts[40] > MAX_LAMBDA_H
+    # a fixed scooter at 50 km/h keeps the 2.5 ms accuracy step
+    assert PTWRollEnv().substeps == round(PTWRollEnv().dt / DEFAULT_SUBSTEP)
     assert PTWRollEnv(substeps=9).substeps == 9 and PTWRollEnv(substeps=1).substeps == PTWRollEnv().substeps
     with pytest.raises(EnvConfigError, match="substeps must be a positive whole number"):
         PTWRollEnv(substeps=0)
+
+
+def test_step_speeds_vehicle_keeps_the_step_of_the_whole_range():
+    """A front tire of 0.8x stiffness makes the scooter's fastest mode 188 1/s at 40 m/s, just past the edge
+    of 4 substeps: sized for the vehicle's whole range (``step_speeds="vehicle"``, what ride logs keep) it takes
+    5 on a 50 km/h ride, sized for the ride (default) 4, each checked against that plant's own eigenvalues."""
+    from ptw_env.integrate import MAX_LAMBDA_H
+
+    eff = {"tire_stiffness": {"front_scale": 0.8, "rear_scale": 1.0}}
+    plant = ptw_env.compile_plant(None, eff)
+    ride, whole = PTWRollEnv(effects=eff), PTWRollEnv(effects=eff, step_speeds="vehicle")
+
+    def lam(vx: float) -> float:
+        return float(np.abs(np.linalg.eigvals(ptw_env.linearise(plant, vx)[0])).max())
+
+    assert lam(whole.vehicle.vmax) * whole.dt / 4 > MAX_LAMBDA_H >= lam(whole.vehicle.vmax) * whole.dt / whole.substeps
+    assert (ride.substeps, whole.substeps) == (4, 5)
+    assert lam(float(ride.profile.vx.max())) * ride.dt / ride.substeps <= MAX_LAMBDA_H
+    with pytest.raises(EnvConfigError, match="step_speeds must be 'ride' or 'vehicle'"):
+        PTWRollEnv(step_speeds="fast")
 
 
 def test_vehicle_randomization_errors_name_the_key_and_the_problem():
