@@ -224,8 +224,10 @@ class Vehicle:
         """``max |eig(E^-1 A(vx))|`` [1/s] over the given speeds [m/s]: the stiffest mode met at those
         speeds (:attr:`fastest_eigenvalue` is this over the whole range; an environment sizes its step
         for the speeds its rides reach, :func:`ptw_env.integrate.speed_grid`)."""
-        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(float(v)))).max()
-                         for v in np.atleast_1d(np.asarray(speeds, dtype=float))))
+        v = np.atleast_1d(np.asarray(speeds, dtype=float)).ravel()
+        if not v.size or not np.all(np.isfinite(v)):
+            raise ValueError(f"speeds must be finite numbers of m/s, got {speeds!r}")
+        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(float(x)))).max() for x in v))
 
     @property
     def steer_torque_scale(self) -> float:

@@ -341,10 +341,12 @@ def test_vehicle_randomization_draws_the_vehicle_of_those_parameters():
 
 def test_vehicle_randomization_sizes_the_step_for_the_fastest_drawn_vehicle():
     """Short relaxation lengths make faster tire lags (vx/sigma): the substeps follow the fastest corner at
-    the ride's speeds, computed here from vehicles built by hand."""
+    the ride's speed, computed here from vehicles built by hand and their eigenvalues at that speed (the
+    lane change is ridden at one speed), with the RK4 bounds (2.5 ms, |lambda h| <= MAX_LAMBDA_H) applied
+    by hand."""
     from dataclasses import replace
 
-    from ptw_env.integrate import speed_grid, substeps_for
+    from ptw_env.integrate import DEFAULT_SUBSTEP, MAX_LAMBDA_H
     from ptw_env.sharp import sharp_vehicle
     from ptw_env.vehicle_files import load_parameters
 
@@ -353,12 +355,17 @@ def test_vehicle_randomization_sizes_the_step_for_the_fastest_drawn_vehicle():
     r = {"vehicle:sigma_f": ("uniform", 0.05, 0.3), "vehicle_scale:sigma_r": ("uniform", 0.25, 1.0)}
     for kmh in (50, 120):
         env = PTWRollEnv(vehicle="sharp1971", randomize=r, speed_kmh=kmh)
-        speeds = speed_grid(nominal, env.profile.vx)
-        rates = [sharp_vehicle(replace(p, sigma_f=sf, sigma_r=p.sigma_r * sr), "x", nominal.vmin, nominal.vmax).fastest_rate(speeds)
+        vx = float(env.profile.vx[0])
+        assert np.all(env.profile.vx == vx)
+
+        def lam(v) -> float:
+            return float(np.abs(np.linalg.eigvals(v.state_matrix(vx))).max())
+
+        rates = [lam(sharp_vehicle(replace(p, sigma_f=sf, sigma_r=p.sigma_r * sr), "x", nominal.vmin, nominal.vmax))
                  for sf in (0.05, 0.3) for sr in (0.25, 1.0)]
-        assert max(rates) > 2 * nominal.fastest_rate(speeds)
-        assert env.substeps == substeps_for(env.dt, vehicle=nominal, extra_rate=max(rates), speeds=env.profile.vx) \
-            > PTWRollEnv(vehicle="sharp1971", speed_kmh=kmh).substeps
+        assert max(rates) > 2 * lam(nominal)
+        expected = int(np.ceil(env.dt / min(DEFAULT_SUBSTEP, MAX_LAMBDA_H / max(rates)) - 1e-9))
+        assert env.substeps == expected > PTWRollEnv(vehicle="sharp1971", speed_kmh=kmh).substeps
 
 
 def test_randomised_effects_size_the_step_for_the_stiffest_plant():
