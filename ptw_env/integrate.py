@@ -14,9 +14,13 @@ so a vehicle with stiffer modes than the scooter's gets the same accuracy.
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from . import kernels
 from .dynamics import Plant, compile_plant, linearise
@@ -26,6 +30,32 @@ from .vehicle import Vehicle
 DEFAULT_SUBSTEP = 0.0025
 #: Largest ``|lambda h|`` of the vehicle's fastest mode per RK4 substep (the scooter's 0.47 at 40 m/s).
 MAX_LAMBDA_H = 0.47
+
+
+_F = TypeVar("_F", bound=Callable)
+
+
+def one_blas_thread(fn: _F) -> _F:
+    """Decorator: while ``fn`` runs, the BLAS libraries loaded in the process (numpy's and scipy's OpenBLAS)
+    use one thread each (``threadpoolctl.threadpool_limits(1, "blas")``); their settings are restored after.
+
+    For work that alternates small linear algebra with the batched kernels (:func:`simulate`, which runs
+    on numba's OpenMP threads, one per core). After each call that OpenBLAS spreads over its threads,
+    they keep spinning for a while, waiting for the next one, and take the cores from the kernel that
+    follows. Measured on 2 cores (``scripts/bench_diagnose.py``, eight 90 s logs, the two run in turn on the
+    same log, the same verdicts and vehicle-steps): ``ptw-assist diagnose`` takes 1.31-1.74x as long with
+    OpenBLAS's default threads (median 1.44x; with one, 65-72 % of its time is in the kernel). The matrices of
+    such work are small (10 x 10 normal equations, least-squares Jacobians of a few columns): what a second
+    BLAS thread gains there is less than what its spinning costs the kernel.
+    Entered at each call, so that a BLAS library loaded after import is limited too.
+    """
+
+    @functools.wraps(fn)
+    def limited(*args, **kwargs):
+        with threadpool_limits(limits=1, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return limited  # type: ignore[return-value]
 
 
 class SimulationInputError(ValueError):

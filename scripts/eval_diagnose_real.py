@@ -18,7 +18,7 @@ Usage::
     python scripts/eval_diagnose_real.py [--data DIR] [--out OUT_DIR] [--overwrite]
 
 Writes ``OUT_DIR/table.md``, ``OUT_DIR/results.json``, ``OUT_DIR/<run>.png`` and
-``OUT_DIR/cross_run.png`` (default ``out/diagnose_real/``). About 1.7 minutes for the 14 runs on an idle
+``OUT_DIR/cross_run.png`` (default ``out/diagnose_real/``). About 1.6 minutes for the 14 runs on an idle
 2-core machine (diagnoses, 546 cross-run scores and the hand fits).
 """
 

@@ -263,3 +263,62 @@ def test_default_substeps_follow_each_vehicles_fastest_mode(name):
     scale = np.abs(outr).max(axis=0)
     assert np.all(scale > 0)
     assert np.max(np.abs(out - outr).max(axis=0) / scale) < 1e-4
+
+
+def test_one_blas_thread_limits_blas_while_the_function_runs_and_restores_it():
+    """The work that alternates BLAS with the batched kernel (diagnose, score_model) runs with one BLAS
+    thread per library (ptw_env.integrate.one_blas_thread: spinning OpenBLAS threads took the cores from
+    the kernel), and the caller's settings come back afterwards, also after an error."""
+    import numpy as np
+    import scipy.linalg  # noqa: F401  (scipy's own OpenBLAS loaded too)
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from assist.diagnose import diagnose, score_model
+    from ptw_env.integrate import one_blas_thread
+
+    def blas_threads():
+        return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        assert before and max(before) == 2  # a BLAS with 2 threads to limit
+        seen = []
+
+        @one_blas_thread
+        def work(fail: bool) -> int:
+            seen.append(blas_threads())
+            if fail:
+                raise RuntimeError("inside")
+            return int(np.ones((3, 3)).dot(np.ones(3))[0])
+
+        assert work(False) == 3
+        with pytest.raises(RuntimeError, match="inside"):
+            work(True)
+        assert seen == [[1] * len(before)] * 2
+        assert blas_threads() == before
+
+
+def test_diagnose_reads_the_log_with_one_blas_thread(monkeypatch):
+    """diagnose runs under one_blas_thread: the log is read (its first step) with one BLAS thread per
+    library, and the caller's two are back after the call."""
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import assist.diagnose.diagnosis as dg
+
+    def blas_threads():
+        return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+
+    seen = []
+
+    def reading(path):
+        seen.append(blas_threads())
+        raise RuntimeError(f"read {path}")
+
+    monkeypatch.setattr(dg, "read_log", reading)
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        with pytest.raises(RuntimeError, match="read ride.csv"):
+            dg.diagnose("ride.csv")
+        assert blas_threads() == before and max(before) == 2
+    assert seen == [[1] * len(before)]

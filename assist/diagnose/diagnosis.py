@@ -29,6 +29,7 @@ import numpy as np
 
 from ptw_env.logs import LogFormatError, RideLog, check_against_vehicle, read_log
 from ptw_env.effects import SENSOR_CAUSES
+from ptw_env.integrate import one_blas_thread
 from ptw_env.sensors import DEFAULT_NOISE_STD
 from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
 from ptw_env.vehicle_files import VehicleFileError, vehicle_of_log
@@ -72,6 +73,7 @@ def _progress(progress: bool | None, total: int):
     return tqdm(total=total, desc="fitting hypotheses", unit="hyp", disable=disable, leave=False)
 
 
+@one_blas_thread
 def diagnose(
     log_or_path: RideLog | str | os.PathLike,
     *,
@@ -359,6 +361,7 @@ def sensor_indices() -> tuple[int, ...]:
     return tuple(sorted(idx))
 
 
+@one_blas_thread
 def score_model(log_or_path: RideLog | str | os.PathLike, report: DiagnosisReport, *, parts: str = "all",
                 model: str = "reported", window_s: float | None = None, lead_s: float = 0.1,
                 encoder_quantum: float | None | str = "auto") -> TransferScore:
