@@ -676,6 +676,57 @@ def held_speed(t: np.ndarray, vx: np.ndarray) -> np.ndarray:
     return np.interp(np.asarray(t, dtype=float), tf, vf)
 
 
+def ridden_part(log: RideLog, min_duration_s: float = 1.0) -> tuple[RideLog, list[str]]:
+    """The longest stretch of ``log`` a sequential estimator can run through, and notes saying what was left out
+    and why (the estimators and the risk warning: ``ptw-assist estimate`` and ``risk``).
+
+    A sample is usable when the rider torque ``tau`` is read (the model is driven by it: a dropout there
+    cannot be bridged) and the speed, where read, is positive: a standstill, a vehicle pushed or carried,
+    a speed sensor reading 0 or less is not riding, and the model divides by ``vx``. A speed dropout is usable
+    (the held speed bridges it, :func:`held_speed`). The longest run of usable samples is kept; what lies
+    before and after it, and any shorter usable run, is left out and said in the notes (samples, times and
+    file lines). ``log`` is returned itself, with no note, when every sample is usable.
+
+    Raises
+    ------
+    LogDataError
+        No usable stretch of at least ``min_duration_s`` [s] (the stretches' lengths named).
+    """
+    tau, v = log["tau"], log["vx"]
+    bad_tau = ~np.isfinite(tau)
+    stand = np.isfinite(v) & (v <= 0.0)
+    good = ~(bad_tau | stand)
+    if good.all():
+        return log, []
+    edges = np.flatnonzero(np.diff(np.r_[0, good.astype(np.int8), 0]))
+    starts, ends = edges[::2], edges[1::2]  # usable runs [start, end)
+    lengths = ends - starts
+    why = []
+    if stand.any():
+        k = int(np.flatnonzero(stand)[0])
+        why.append(f"{int(stand.sum())} sample(s) with vx <= 0 (not ridden; the first at {log.where(k)})")
+    if bad_tau.any():
+        k = int(np.flatnonzero(bad_tau)[0])
+        why.append(f"{int(bad_tau.sum())} dropout(s) in tau (the first at {log.where(k)})")
+    if lengths.size == 0 or lengths.max() * log.dt < min_duration_s:
+        longest = f"{lengths.max() * log.dt:.2f} s" if lengths.size else "none"
+        raise LogDataError(f"{log.path or 'log'}: no ridden stretch of at least {min_duration_s:g} s (longest: "
+                           f"{longest}); {'; '.join(why)}", column="vx" if stand.any() else "tau")
+    i = int(np.argmax(lengths))
+    s, e = int(starts[i]), int(ends[i])
+    notes = [f"kept the longest ridden stretch, t = {log.t[s]:.2f}-{log.t[e - 1]:.2f} s ({e - s} of {len(log)} samples, "
+             f"from {log.where(s)}): the log has {'; '.join(why)}"]
+    others = [j for j in range(lengths.size) if j != i]
+    if others:
+        notes.append(f"left out {len(others)} shorter ridden stretch(es), {lengths[others].sum() * log.dt:.2f} s in all "
+                     f"(a sequential estimator cannot bridge the gaps): "
+                     + ", ".join(f"t = {log.t[starts[j]]:.2f}-{log.t[ends[j] - 1]:.2f} s" for j in others[:5])
+                     + (" ..." if len(others) > 5 else ""))
+    part = RideLog(t=log.t[s:e], columns={k: c[s:e] for k, c in log.columns.items()}, meta=log.meta, path=log.path,
+                   ignored_columns=log.ignored_columns, lines=log.lines[s:e] if len(log.lines) == len(log) else ())
+    return part, notes
+
+
 def input_series(t: np.ndarray, tau: np.ndarray, vx: np.ndarray, where: str = "") -> tuple[np.ndarray, np.ndarray]:
     """The inputs of a model replay, checked once: ``(tau, vx_held)`` [N m, m/s] from the ``tau`` and ``vx``
     columns at times ``t`` [s].

@@ -319,7 +319,8 @@ def _nonpositive(rng, base: Base, d: Path, cmd: str) -> Case:
     log = _write(base, d, rows=rows)
     if cmd == "diagnose":  # trims the windows around it and says so
         return _accept_on_log(d, cmd, log, ["speed outside the model's range", f"sample {i}"])
-    return _refuse_on_log(d, cmd, log, ["vx", f"sample {i}"])
+    # estimate, risk: run on the longest ridden stretch (ptw_env.logs.ridden_part) and say so
+    return _accept_on_log(d, cmd, log, ["kept the longest ridden stretch", f"sample {i}"])
 
 
 def _extra_columns(rng, base: Base, d: Path, cmd: str) -> Case:

@@ -531,3 +531,63 @@ def test_input_series_is_the_one_check_of_torque_and_speed():
         input_series(t, np.zeros(6), [10, 10, 10, 10, -1, 10])
     with pytest.raises(ValueError, match="vx is missing at every sample"):
         input_series(t, np.zeros(6), np.full(6, np.nan))
+
+
+# --------------------------------------------------------------------------- the ridden part of a real log
+
+
+def test_ridden_part_keeps_the_longest_ridden_stretch_and_names_what_it_left_out(tmp_path):
+    """Standstills (vx <= 0) and torque dropouts cut a log into usable stretches (issue 19: real logs are
+    normal input for estimate and risk); the longest is kept, the rest named with file lines."""
+    from ptw_env.logs import ridden_part
+
+    cols = columns(600, seed=4)
+    cols["vx"] = np.full(600, 5.0)
+    cols["vx"][:50] = 0.0  # launched from a standstill
+    cols["tau"][300] = np.nan  # a torque dropout
+    cols["vx"][450:460] = -0.5  # pushed back
+    cols["vx"][100] = np.nan  # a speed dropout is bridged, not a cut
+    log = read_log(write_log(tmp_path / "ride.csv", cols))
+    part, notes = ridden_part(log)
+    assert len(part) == 250 and part.t[0] == log.t[50] and part.t[-1] == log.t[299]
+    for c in log.columns:
+        np.testing.assert_array_equal(part[c], log[c][50:300])
+    assert "line 52" in part.where(0) and part.path == log.path
+    assert "kept the longest ridden stretch" in notes[0] and "60 sample(s) with vx <= 0" in notes[0]
+    assert "line 2 (sample 0" in notes[0] and "1 dropout(s) in tau" in notes[0] and "line 302 (sample 300" in notes[0]
+    assert "2 shorter ridden stretch(es)" in notes[1] and "2.89 s in all" in notes[1]
+    whole = read_log(write_log(tmp_path / "whole.csv", columns(300, seed=5) | {"vx": np.full(300, 3.0)}))
+    assert ridden_part(whole) == (whole, [])
+    cols["vx"][::80] = 0.0  # no stretch of 1 s
+    with pytest.raises(LogDataError, match=r"no ridden stretch of at least 1 s \(longest: 0\.79 s\)"):
+        ridden_part(read_log(write_log(tmp_path / "short.csv", cols)))
+
+
+@pytest.mark.parametrize("cmd", ["estimate", "risk"])
+def test_estimate_and_risk_run_on_the_ridden_part_as_on_that_part_alone(tmp_path, capsys, cmd):
+    """A real ride with standstills before and after (the robot bicycle's first run, padded with 1 s of
+    vx = 0 each side): estimate and risk say what they left out and give the numbers of the ridden part
+    written as a log of its own."""
+    from assist.cli import main
+    from ptw_env.logs import RideLog
+
+    src = read_log(DATA / "robot_bicycle" / "rb_20130703_011.csv")
+    n, pad = len(src), 100
+    t = src.t[0] + np.arange(n + 2 * pad) * src.dt
+    cols = {k: np.r_[np.full(pad, v[0]), v, np.full(pad, v[-1])] for k, v in src.columns.items() if k != "t"}
+    cols["vx"][:pad] = 0.0
+    cols["vx"][-pad:] = 0.0
+    meta = {k: v for k, v in src.meta.items() if k != "vehicle_file"}
+    padded = write_log(tmp_path / "padded.csv", RideLog(t=t, columns=cols, meta=meta))
+    alone = write_log(tmp_path / "alone.csv", RideLog(t=t[pad:-pad], columns={k: v[pad:-pad] for k, v in cols.items()},
+                                                       meta=meta))
+    out = {}
+    for name, path in (("padded", padded), ("alone", alone)):
+        assert main([cmd, str(path), "--vehicle", "robot-bicycle", "--json", str(tmp_path / f"{name}_out.json")]) == 0
+        out[name] = (json.loads((tmp_path / f"{name}_out.json").read_text()), capsys.readouterr().out)
+    js, text = out["padded"]
+    assert "note: kept the longest ridden stretch" in text and "200 sample(s) with vx <= 0" in js["notes"][0]
+    assert "notes" not in out["alone"][0]
+    keys = ("stiffness",) if cmd == "estimate" else ("mu_hat_final", "warnings")
+    for k in keys:
+        assert js[k] == out["alone"][0][k]

@@ -87,7 +87,7 @@ def _build(p: argparse.ArgumentParser):
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
 
     def run(a: argparse.Namespace) -> int:
-        from ptw_env.logs import read_log
+        from ptw_env.logs import read_log, ridden_part
         from ptw_env.sensors import SensorConfig
 
         from assist.estimation.adaptive_design import AdaptiveDesignOptions, design_for_vehicle
@@ -99,7 +99,7 @@ def _build(p: argparse.ArgumentParser):
         check_outputs(a, "plot", "json")
         if a.tau_a is not None and not (math.isfinite(a.tau_a) and a.tau_a > 0):
             raise CLIError(f"--tau-a: expected a positive time in seconds, got {a.tau_a}")
-        log = read_log(a.log)
+        log, trimmed = ridden_part(read_log(a.log))  # standstills and torque dropouts: the longest ridden stretch
         vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         why = resolve_design(a)
         dt = float(log.dt)
@@ -149,6 +149,10 @@ def _build(p: argparse.ArgumentParser):
               f"{f' ({a.law} law, {a.gains} gains, {a.parametrisation})' if method == 'adaptive' else ''}; "
               f"stiffness = mean over the final third; vehicle {vehicle.name}, observer scheduled on "
               f"[{model.vmin:g}, {model.vmax:g}] m/s")
+        if trimmed:
+            out["notes"] = trimmed
+            for n in trimmed:
+                print(f"note: {n}")
         if method == "adaptive":
             print(f"design: {why}")
         print(f"{'parameter':<11} {'estimate':>10} {'C/C0':>7}" + (f" {'truth':>10} {'error':>8}" if truth is not None else ""))

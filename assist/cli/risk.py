@@ -45,7 +45,7 @@ def _build(p: argparse.ArgumentParser):
 
         import numpy as np
 
-        from ptw_env.logs import read_log, sidecar_noise_pct
+        from ptw_env.logs import read_log, ridden_part, sidecar_noise_pct
 
         from assist.risk.evaluation import truth_from_log
         from assist.risk.monitor import RiskConfig, RiskMonitor
@@ -53,7 +53,7 @@ def _build(p: argparse.ArgumentParser):
         from assist.risk.pipeline import RiskPipeline, default_estimator
 
         check_outputs(a, "plot", "json")
-        log = read_log(a.log)
+        log, trimmed = ridden_part(read_log(a.log))  # standstills and torque dropouts: the longest ridden stretch
         vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         dt = float(log.dt)
         pct = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)
@@ -80,6 +80,10 @@ def _build(p: argparse.ArgumentParser):
         truth = truth_from_log(log, vehicle)
         print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; vehicle {vehicle.name}; road ahead: "
               f"{res.path_source}")
+        if trimmed:
+            js["notes"] = trimmed
+            for n in trimmed:
+                print(f"note: {n}")
         if banks:
             e = js["road_bank_estimate_rad"]
             print(f"road bank estimated on line: median {e['median']:.4f} rad (5-95 %: {e['p5']:.4f} to "
