@@ -55,6 +55,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from assist.diagnose import diagnose, score_model
     from assist.diagnose.inverse_dynamics import steer_equation_fit
+    from assist.diagnose.measurement import UNITS
     from ptw_env.logs import read_log
 
     t_all = time.perf_counter()
@@ -81,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
                                                    for t in ext["terms"]],
             "extension_gain": None if ext is None else ext["gain"],
             "extended_explains": js["verdict"].get("extended", False),
+            "nominal_rmse": js["nominal"]["rmse"], "noise": js["noise"],
             "notes": js["method"].get("notes", []),
             # the hand fit: the lean from the firmware's complementary filter (the logs have no roll column)
             "hand_fit": steer_equation_fit(log, rep.vehicle, roll=log.columns.get("roll_cf")),
@@ -109,6 +111,13 @@ def main(argv: list[str] | None = None) -> int:
                  "median": float(np.median(g[off & np.isfinite(g)])), "min": float(np.min(g[off & np.isfinite(g)])),
                  "positive": int(np.sum(g[off] > 0)), "diverged": int(np.sum(off & ~np.isfinite(g))),
                  "pairs": int(off.sum())} for w, g in G.items()}
+    # per run: its model on every other run (does each run's model carry over, not only most pairs?)
+    for w, g in G.items():
+        cross[w]["per_run"] = {p.stem: {"mean": float(np.mean(g[i][off[i] & np.isfinite(g[i])])),
+                                        "median": float(np.median(g[i][off[i] & np.isfinite(g[i])])),
+                                        "min": float(np.min(g[i][off[i] & np.isfinite(g[i])])),
+                                        "positive": int(np.sum(g[i][off[i]] > 0)), "pairs": int(off[i].sum())}
+                               for i, p in enumerate(paths)}
     extended_rows = [i for i, r in enumerate(rows) if r["extension"]]
     ext_off = np.zeros_like(off)
     ext_off[extended_rows] = True
@@ -130,8 +139,16 @@ def main(argv: list[str] | None = None) -> int:
         ext = "; ".join(r["extension"]) if r["extension"] else "-"
         eg = "-" if r["extension_gain"] is None else f"{r['extension_gain']:.3f}"
         expl = "yes" if (r["explained"] or r["extended_explains"]) else "no"
-        lines.append(f"| {r['run']} | {r['duration_s']} | {'; '.join(r['verdict'])} | {r['gain']:.3f} | {ext} | {eg} | "
-                     f"{expl} | {r['seconds']} |")
+        lines.append(f"| [{r['run']}]({r['run']}.png) | {r['duration_s']} | {'; '.join(r['verdict'])} | {r['gain']:.3f} | "
+                     f"{ext} | {eg} | {expl} | {r['seconds']} |")
+    chans = list(rows[0]["nominal_rmse"])
+    lines += ["", "The nominal model's held-out error per channel: RMS residual [unit] and, in brackets, in noise levels "
+                  "(the noise level each report estimated); the figure of each run (linked above) draws the nominal and "
+                  "the reported model on the two channels the latter improves most.", "",
+              "| run | " + " | ".join(f"{c} [{UNITS[c]}]" for c in chans) + " |", "|---|" + "---|" * len(chans)]
+    for r in rows:
+        lines.append(f"| {r['run']} | " + " | ".join(f"{r['nominal_rmse'][c]:.3g} ({r['nominal_rmse'][c] / r['noise'][c]:.1f})"
+                                                    for c in chans) + " |")
     lines += ["", f"## Across runs ({cross_s:.0f} s, [figure](cross_run.png))", "",
               "Each run's model, frozen, scored on each of the other runs (every window held out; "
               "`assist.diagnose.score_model`). Gain over the nominal model, over the "
@@ -142,6 +159,13 @@ def main(argv: list[str] | None = None) -> int:
                      ("verdict_all", "effects.md verdict alone")):
         c = cross[w]
         lines.append(f"| {label} | {c['median']:.3f} | {c['min']:.3f} | {c['positive']} of {c['pairs']} | {c['diverged']} |")
+    lines += ["", "Per run: its reported model (every fitted value) on each of the other runs, and with its sensor "
+                  "parameters at nominal:", "",
+              "| run | mean gain | median | min | positive | mean, sensors at nominal | positive |", "|---|---|---|---|---|---|---|"]
+    for p in paths:
+        a, b = cross["reported_all"]["per_run"][p.stem], cross["reported_vehicle"]["per_run"][p.stem]
+        lines.append(f"| {p.stem} | {a['mean']:.3f} | {a['median']:.3f} | {a['min']:.3f} | {a['positive']} of {a['pairs']} | "
+                     f"{b['mean']:.3f} | {b['positive']} of {b['pairs']} |")
     eb = cross["extension_beats_verdict"]
     if eb["pairs"]:
         lines += ["", f"From the {len(extended_rows)} extended runs: the extension predicts the other run better than "

@@ -13,7 +13,8 @@ Covered elsewhere: ``yaw_rate_scale``, ``lateral_aero`` and ``roll_aero`` (``tes
 so that no closure is needed: ``steer_viscous`` is effects.md's ``steer_damping``, ``roll_offset`` its
 ``roll_moment_offset``, ``steer_offset`` its ``road_bank`` (``test_diagnose_outside.py``). And
 ``ay_scale`` is named as ``ay_frame`` (below): in a steady turn a partly unrotated accelerometer reads
-``ay (1 - gravity_gain)``, a scale error.
+``ay (1 - gravity_gain)``, a scale error. These four are found by the library's search alone, without
+the table (the last test).
 
 Measured (seed 51, 45 s, reference sensors): yaw_aero 0.0761 for 0.0756, yaw_vx_vy -3.040 for
 -3.026, lateral_vx_vy -2.201 for -2.232, delta_offset 0.00971 for 0.01, ay_offset 0.297 for 0.3,
@@ -79,3 +80,57 @@ def test_an_accelerometer_scale_error_is_named_as_its_equivalent_ay_frame():
     rep = diagnose(sensor_error(lg, "ay", scale=0.2, truth=ay_true), progress=False)
     assert rep.causes[0]["cause"] == "ay_frame" and rep.explained, rep.causes
     assert abs(-rep.causes[0]["params"]["gravity_gain"] - 0.2) <= 0.15 * 0.2  # measured 0.178
+
+
+# ------------------------------------------------------------------ the library alone, where the table claims the effect
+def _closure_search_alone(log):
+    """The extension's forward selection (:func:`assist.diagnose.extension.extend`) from the nominal model,
+    with the diagnosis's replay, noise weights, fitting and held-out windows, but no table cause; it stops at
+    the first supported term."""
+    import numpy as np
+
+    from assist.diagnose.diagnosis import SCORE_STATE_STEPS, nominal_replay
+    from assist.diagnose.extension import extend
+    from assist.diagnose.hypotheses import MAX_NFEV, HypothesisFitter
+
+    win, _, replay, _ = nominal_replay(log, "log", REFERENCE_SCOOTER)
+    fit_w, test_w = np.flatnonzero(win.train), np.flatnonzero(~win.train)
+    nominal = replay.params.nominal
+    rt, _ = replay.fit_states(nominal[None], test_w, steps=SCORE_STATE_STEPS)
+    return extend(HypothesisFitter(replay, fit_w, max_nfev=MAX_NFEV), nominal, test_w, win.score[test_w].sum(axis=1),
+                  win.channels, float((rt**2).sum()), explains=lambda z: True, score_steps=SCORE_STATE_STEPS)
+
+
+def _claimed_log(term: str, c: float):
+    if term == "steer_viscous":  # a steering damper stiffer than nominal: effects.md's steer_damping
+        nominal = param_set(REFERENCE_SCOOTER).vehicle_scales.steer_damping
+        return ride("handling", {"steer_damping": {"damping_nms": nominal - c}}, seed=SEED)
+    if term == "steer_offset":  # a torque the rider's sensor does not record (test plant)
+        return ride_outside("handling", SEED, torque=lambda x, vx: c)
+    if term == "roll_offset":  # effects.md's roll_moment_offset
+        return ride("handling", {"roll_moment_offset": {"moment_nm": c}}, seed=SEED)
+    lg = ride("handling", None, seed=SEED)  # ay_scale: an accelerometer reading (1 + c) ay
+    ay_true = (lg.columns["x_Fyf"] + lg.columns["x_Fyr"]) / REFERENCE_SCOOTER.mass
+    return sensor_error(lg, "ay", scale=c, truth=ay_true)
+
+
+CLAIMED = [
+    ("steer_viscous", -0.3 * HI["steer_viscous"]),
+    ("steer_offset", 0.3 * HI["steer_offset"]),
+    ("roll_offset", 0.3 * HI["roll_offset"]),
+    ("ay_scale", 0.2),
+]
+
+
+@pytest.mark.parametrize("term, c", CLAIMED, ids=[c[0] for c in CLAIMED])
+def test_a_term_the_table_claims_is_found_by_the_library_alone(term, c):
+    """The four closure terms whose physics a table cause also carries (``steer_viscous`` is steer_damping,
+    ``roll_offset`` roll_moment_offset, ``steer_offset`` a bank's twin, ``ay_scale`` ay_frame's twin in a
+    turn) cannot be hidden where no table hypothesis claims them: the diagnosis rightly names the table
+    cause. The library's search alone, from the nominal model, must still find each with its coefficient
+    within 25 % (issue 19). Measured (seed 51): steer_viscous -24.11 for -23.90 N m s/rad, steer_offset 4.929
+    for 4.930 N m, roll_offset 121.0 for 121.03 N m, ay_scale 0.1990 for 0.2; the runner-up each time is the
+    twin term (steer_coulomb, roll_offset, steer_offset, ay_offset)."""
+    ext = _closure_search_alone(_claimed_log(term, c))
+    assert ext is not None and ext.terms[0]["name"] == term, None if ext is None else ext.steps[0]
+    assert abs(ext.terms[0]["coefficient"] - c) <= 0.25 * abs(c), ext.terms[0]

@@ -47,7 +47,7 @@ def test_yaw_gyro_scale_error_is_found_as_a_sensor_closure():
     assert rep.extended and rep.extension["gain"] > rep.gain  # better than the table's stand-in
 
 
-def test_aerodynamic_side_force_is_found_in_the_lateral_and_roll_equations():
+def test_aerodynamic_side_force_is_found_in_the_lateral_and_roll_equations(tmp_path):
     """F = 0.15 vx^2 [N] at 0.9 m: lateral c within 25 % of 0.15 N s^2/m^2 and roll c within 25 % of
     0.135 N m s^2/m^2 (measured 0.146 and 0.133), and the extended model explains the log."""
     rep = diagnose(ride_outside("handling", 42, force=aero_side_force(0.15)), progress=False)
@@ -57,6 +57,42 @@ def test_aerodynamic_side_force_is_found_in_the_lateral_and_roll_equations():
     assert abs(terms["lateral_aero"]["coefficient"] - 0.15) <= 0.25 * 0.15
     assert abs(terms["roll_aero"]["coefficient"] - 0.135) <= 0.25 * 0.135
     assert rep.extended
+    _check_reported_model(rep, tmp_path)
+
+
+def _check_reported_model(rep, tmp_path) -> None:
+    """The reported model is the extension: ``extended_model()`` adds its closure forces to the model it
+    extends (checked against model.md's ``E``: the force enters its equation's row, 3 lateral, 4 yaw,
+    5 roll, 6 steer, through ``E^-1`` like every other generalised force), and the figure draws and names it."""
+    import numpy as np
+    import matplotlib
+
+    from ptw_env.dynamics import compile_plant
+    from ptw_env.effects import Effects
+
+    base = rep.extension["extends"]
+    base_plant = compile_plant(rep.vehicle, Effects.from_causes(base if isinstance(base, list) else []).dynamic)
+    x, vx = np.array([0.05, 0.01, 0.2, 0.1, 0.02, 0.01, 50.0, 40.0]), 12.0
+    g = np.zeros(8)
+    features = {"1": 1.0, "vx^2": vx**2, "vx*vy": vx * x[2], "delta_dot": x[5], "vx*delta": vx * x[1],
+                "tanh(delta_dot/w)": np.tanh(x[5] / 0.02)}
+    rows = {"lateral": 2, "yaw": 3, "roll": 4, "steer": 5}
+    forces = [t for t in rep.extension["terms"] if not t["equation"].startswith("sensor:")]
+    assert forces  # this ride's extension has force closures
+    for t in forces:
+        g[rows[t["equation"]]] += t["coefficient"] * features[CLOSURES[t["name"]].feature]
+    got = rep.extended_model().rhs(x, 0.0, vx) - base_plant.rhs(x, 0.0, vx)
+    np.testing.assert_allclose(got, np.linalg.solve(rep.vehicle.E, g), rtol=2e-3, atol=1e-9)
+    fig = rep.plot(str(tmp_path / "r.png"))
+    labels = [t.get_text() for ax in fig.axes for t in (ax.get_legend().get_texts() if ax.get_legend() else [])]
+    assert any(all(t["name"] in lab for t in rep.extension["terms"]) for lab in labels), labels
+    # the bars are the drawn replays' RMS residuals, in noise levels
+    d, chans = rep.plot_data, list(rep.nominal_rmse)
+    e = np.where(d["score"], d["Y"] - d["Yext"], 0.0)
+    want = np.sqrt((e**2).sum(axis=(0, 1)) / d["score"].sum(axis=(0, 1))) / np.array([rep.noise[c] for c in chans])
+    bars = [p.get_height() for p in fig.axes[2].patches][len(chans):]
+    np.testing.assert_allclose(bars, want, rtol=1e-12)
+    matplotlib.pyplot.close(fig)
 
 
 def test_a_log_the_table_explains_gets_no_closure():

@@ -7,7 +7,7 @@ The contract is ``shared/spec/diagnose.md``; the causes and their physics are
     report = diagnose("ride.csv")
     report.to_json()                # diagnose.md's JSON
     report.effects                  # the verdict, e.g. gymnasium.make("PTWRoll-v0", effects=report.effects)
-    report.extended_model()         # the verdict's compiled plant
+    report.extended_model()         # the reported model's compiled plant (closure forces included)
     report.plot("report.png")
     score_model("other_ride.csv", report)   # the fitted model, frozen, on another log of the vehicle
 

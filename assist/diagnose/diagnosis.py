@@ -171,7 +171,7 @@ def diagnose(
     # 1. nominal replay (weighted by the reference sensors' noise), noise levels from its residual
     if window_s is None:
         window_s = auto_window(log.duration_s, lead_s)
-    win, notes, replay, quantum = _nominal_replay(log, name, vehicle, window_s, lead_s, encoder_quantum)
+    win, notes, replay, quantum = nominal_replay(log, name, vehicle, window_s, lead_s, encoder_quantum)
     chans = win.channels
     all_w = np.arange(len(win))
     fit_w, test_w = np.flatnonzero(win.train), np.flatnonzero(~win.train)
@@ -306,8 +306,8 @@ def replay_windows(log: RideLog, vehicle: Vehicle, window_s: float | None = None
                         vehicle.vmin, vehicle.vmax, source=source if source is not None else str(log.path or "log"))
 
 
-def _nominal_replay(log: RideLog, name: str, vehicle: Vehicle, window_s: float | None, lead_s: float,
-                    encoder_quantum: float | None | str):
+def nominal_replay(log: RideLog, name: str, vehicle: Vehicle, window_s: float | None = None, lead_s: float = 0.1,
+                   encoder_quantum: float | None | str = "auto") -> tuple:
     """The log checked against the vehicle, cut into windows, and the nominal model replayed on all of
     them; the replay's weights are set to the noise levels that residual shows. Returns the windows,
     the notes of the cut, the replay and the encoder step used."""
@@ -391,7 +391,7 @@ def score_model(log_or_path: RideLog | str | os.PathLike, report: DiagnosisRepor
     if window_s is not None:
         window_s = _positive("window_s", window_s)
     log, name = _load(log_or_path)
-    win, _, replay, _ = _nominal_replay(log, name, report.vehicle, window_s, lead_s, encoder_quantum)
+    win, _, replay, _ = nominal_replay(log, name, report.vehicle, window_s, lead_s, encoder_quantum)
     chans = win.channels
     all_w = np.arange(len(win))
     nominal = replay.params.nominal
@@ -435,4 +435,4 @@ def _replayed_roll(replay: Replay, x0: np.ndarray, widx: np.ndarray) -> np.ndarr
     return X[..., 0]
 
 
-__all__ = ["diagnose", "DiagnoseInputError"]
+__all__ = ["diagnose", "DiagnoseInputError", "nominal_replay", "replay_windows", "score_model", "SCORE_STATE_STEPS"]

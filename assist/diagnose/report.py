@@ -33,12 +33,13 @@ from typing import Any
 
 import numpy as np
 
-from ptw_env.dynamics import Plant, compile_plant
+from ptw_env.dynamics import Plant, add_generalised_forces, compile_plant
 from ptw_env.effects import Effects
 from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
 
 from . import selection
 from .measurement import UNITS
+from .params import CLOSURES
 
 
 def sig(x: float, digits: int = 4) -> float:
@@ -151,10 +152,28 @@ class DiagnosisReport:
         return Effects.from_causes(self.causes)
 
     def extended_model(self) -> Plant:
-        """The nominal vehicle with the verdict's dynamic effects, compiled
-        (:func:`ptw_env.dynamics.compile_plant`), for simulation and observers. The verdict's
-        sensor effects are in :attr:`effects` (``.sensor``)."""
-        return compile_plant(self.vehicle, self.effects.dynamic)
+        """The reported model compiled (:func:`ptw_env.dynamics.compile_plant`), for simulation and observers:
+        the nominal vehicle with the verdict's dynamic effects or, when the model was extended
+        (:attr:`extension`), with the effects it extends and its closure terms that are forces or moments
+        (:func:`ptw_env.dynamics.add_generalised_forces`: ``E x' = ... + c phi(x, vx) e_row``), at the sizes and
+        coefficients the report states. Sensor effects and closure terms on a channel (offsets, scales) are not
+        dynamics: they are in :attr:`effects` (``.sensor``) and :attr:`extension`."""
+        if self.extension is None:
+            return compile_plant(self.vehicle, self.effects.dynamic)
+        base = self.extension.get("extends")
+        plant = compile_plant(self.vehicle, Effects.from_causes(base if isinstance(base, list) else []).dynamic)
+        forces = [(t["equation"], CLOSURES[t["name"]].feature, float(t["coefficient"]))
+                  for t in self.extension["terms"] if not t["equation"].startswith("sensor:")]
+        return add_generalised_forces(plant, forces) if forces else plant
+
+    def model_label(self) -> str:
+        """What the reported model is, in words: ``verdict (causes)``, or ``extended model (base + closure
+        terms)`` when the model was extended."""
+        if self.extension is None:
+            return f"verdict ({causes_text(self.causes, ', ')})"
+        base = self.extension.get("extends")
+        base_text = causes_text(base, ", ") if isinstance(base, list) and base else "nominal"
+        return f"extended model ({base_text} + {', '.join(t['name'] for t in self.extension['terms'])})"
 
     # -- JSON ----------------------------------------------------------------------------
     def to_json(self) -> dict[str, Any]:
@@ -216,8 +235,9 @@ class DiagnosisReport:
 
     # -- figure --------------------------------------------------------------------------
     def plot(self, path: str | None = None):
-        """Measured vs nominal vs extended model on the two channels that changed most (held-out
-        windows), and the RMS residual per channel before/after, in units of the noise."""
+        """Measured vs nominal vs reported model (the extension when there is one, else the verdict) on the two
+        channels its replay improves most (held-out windows), and the RMS residual per channel of the two
+        replays drawn, in units of the noise (the bars are the lines above, channel by channel)."""
         import matplotlib
 
         matplotlib.use("Agg")
@@ -226,10 +246,12 @@ class DiagnosisReport:
         d = self.plot_data
         chans = list(self.nominal_rmse)
         fig, axs = plt.subplots(3, 1, figsize=(11, 9), constrained_layout=True)
+        label, gain = self.model_label(), self.gain if self.extension is None else float(self.extension["gain"])
+        noise = np.array([self.noise[c] for c in chans])
         if d:
             t, Y, Yn, Ye, sc = d["t"], d["Y"], d["Ynom"], d["Yext"], d["score"]
-            order = sorted(range(len(chans)), key=lambda i: -self.gain_channels[chans[i]])[:2]
-            verdict = "+".join(c["cause"] for c in self.causes)
+            before, after = (_rms(Y - Ym, sc) / noise for Ym in (Yn, Ye))
+            order = sorted(range(len(chans)), key=lambda i: after[i] / before[i])[:2]
             for ax, i in zip(axs[:2], order):
                 def line(a):
                     a = np.where(sc[..., i], a[..., i], np.nan)
@@ -237,27 +259,34 @@ class DiagnosisReport:
                 tt = np.concatenate([np.r_[row, np.nan] for row in t])
                 ax.plot(tt, line(Y), color="0.55", lw=0.7, label="measured")
                 ax.plot(tt, line(Yn), color="C3", lw=1.0, label="nominal model")
-                ax.plot(tt, line(Ye), color="C0", lw=1.0, ls="--", label=f"extended model ({verdict})")
+                ax.plot(tt, line(Ye), color="C0", lw=1.0, ls="--", label=label)
                 ax.set(xlabel="t [s] (held-out windows)", ylabel=f"{chans[i]} [{UNITS[chans[i]]}]",
-                       title=f"{chans[i]}: held-out gain {self.gain_channels[chans[i]]:.2f}")
+                       title=f"{chans[i]}: RMS residual {before[i]:.3g} -> {after[i]:.3g} noise levels")
                 ax.legend(loc="upper right", fontsize=8)
+        else:  # a report without its replays (e.g. read back from JSON): the report's own figures
+            before = np.array([self.nominal_rmse[c] for c in chans]) / noise
+            after = np.array([self.verdict_rmse[c] for c in chans]) / noise
+            label = f"verdict ({causes_text(self.causes, ', ')})"
         ax = axs[2]
         x = np.arange(len(chans))
-        before = [self.nominal_rmse[c] / self.noise[c] for c in chans]
-        after = [self.verdict_rmse[c] / self.noise[c] for c in chans]
-        ax.bar(x - 0.2, before, 0.4, color="C3", label="nominal")
-        ax.bar(x + 0.2, after, 0.4, color="C0", label="extended")
+        ax.bar(x - 0.2, before, 0.4, color="C3", label="nominal model")
+        ax.bar(x + 0.2, after, 0.4, color="C0", label=label)
         ax.axhline(1.0, color="k", lw=0.8, ls=":", label="noise level")
         ax.set_xticks(x, chans)
         ax.set_yscale("log")
+        state = "explained" if self.explained else ("extended, explained" if self.extended else "NOT explained")
         ax.set(ylabel="held-out RMS residual / noise",
-               title=f"residual before/after; {'explained' if self.explained else 'NOT explained'}, "
-                     f"gain {self.gain:.3f}")
+               title=f"residual before/after; {state}; held-out gain {gain:.3f}")
         ax.legend(fontsize=8)
         if path is not None:
             fig.savefig(path, dpi=110)
             plt.close(fig)
         return fig
+
+
+def _rms(e: np.ndarray, score: np.ndarray) -> np.ndarray:
+    """RMS per channel of ``e`` (windows, samples, channels) over the scored samples."""
+    return np.sqrt((np.where(score, e, 0.0) ** 2).sum(axis=(0, 1)) / np.maximum(score.sum(axis=(0, 1)), 1))
 
 
 __all__ = ["DiagnosisReport", "causes_text", "hypotheses_json", "method_json", "sig"]
