@@ -133,3 +133,4 @@ def test_estimate_with_no_options_is_within_2_percent_on_the_disclosed_logs(tmp_
     err = out["relative_error"]
     assert len(err) == 4 and all(abs(v) < 0.02 for v in err.values()), err
     assert "design: Kalman vertex gains" in capsys.readouterr().out
+    assert "notes" not in out  # nothing trimmed, no stiffness held by the adaptation band

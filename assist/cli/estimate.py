@@ -149,6 +149,15 @@ def _build(p: argparse.ArgumentParser):
               f"{f' ({a.law} law, {a.gains} gains, {a.parametrisation})' if method == 'adaptive' else ''}; "
               f"stiffness = mean over the final third; vehicle {vehicle.name}, observer scheduled on "
               f"[{model.vmin:g}, {model.vmax:g}] m/s")
+        if method == "adaptive":  # an estimate held by the projection's band says nothing about the tire
+            lo, hi = obs.band
+            edge = [f"{n} at {'the lower' if r <= lo * 1.01 else 'the upper'} edge of the adaptation band "
+                    f"({r:.3f} of nominal; band {lo:g}-{hi:g})"
+                    for n, r in zip(THETA_NAMES, mean / model.theta0) if r <= lo * 1.01 or r >= hi * 0.99]
+            if edge:
+                trimmed = trimmed + ["; ".join(edge) + ": held by the band, not determined by the log (a model "
+                                     "error the stiffness stands in for, a sensor offset or too little excitation; "
+                                     "'ptw-assist diagnose' says which part of the model misses)"]
         if trimmed:
             out["notes"] = trimmed
             for n in trimmed:

@@ -104,6 +104,7 @@ interface, sharing the weighted least squares and the log handling.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -148,6 +149,9 @@ class EstimationResult:
         State estimate where the method has one.
     info : dict
         Method-specific figures.
+    nominal : ndarray (4,) or None
+        The nominal stiffnesses of the vehicle's model [N/rad] (:func:`estimate` sets them), for the ratios
+        of :meth:`to_json`.
     """
 
     method: str
@@ -155,6 +159,7 @@ class EstimationResult:
     stiffness: np.ndarray
     x_hat: np.ndarray | None
     info: dict
+    nominal: np.ndarray | None = None
 
     def final_third_mean(self) -> np.ndarray:
         """Mean stiffness over the log's final third [N/rad] (cli.md, the paper's Table I figure)."""
@@ -162,16 +167,15 @@ class EstimationResult:
         return self.stiffness[2 * k // 3:].mean(axis=0)
 
     def to_json(self) -> dict[str, Any]:
-        """``{"method", "stiffness": {name: N/rad}}`` (cli.md) plus the nominal and the ratio."""
+        """``{"method", "stiffness": {name: N/rad}}`` (cli.md) plus, with :attr:`nominal`, the ratio to the
+        vehicle's nominal stiffness."""
         m = self.final_third_mean()
-        c0 = build_lpv_model().theta0
-        return {
-            "method": self.method,
-            "stiffness": {n: float(v) for n, v in zip(THETA_NAMES, m)},
-            "stiffness_ratio_to_nominal": {n: float(v / c) for n, v, c in zip(THETA_NAMES, m, c0)},
-            "window": "final third of the log",
-            "duration_s": float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0,
-        }
+        out: dict[str, Any] = {"method": self.method, "stiffness": {n: float(v) for n, v in zip(THETA_NAMES, m)}}
+        if self.nominal is not None:
+            out["stiffness_ratio_to_nominal"] = {n: float(v / c) for n, v, c in zip(THETA_NAMES, m, self.nominal)}
+        out.update(window="final third of the log",
+                   duration_s=float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0)
+        return out
 
 
 # --------------------------------------------------------------------------- filters
@@ -650,6 +654,13 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
     def default_observer() -> AdaptiveObserver:
         return AdaptiveObserver(default_design(model=model)) if observer is None else observer
 
+    return dataclasses.replace(_run(meth, log, model, default_observer, sensors, x_hat, ls_options),
+                               nominal=np.asarray(model.theta0, dtype=float))
+
+
+def _run(meth: str, log, model: LPVModel, default_observer, sensors: SensorConfig | None, x_hat: np.ndarray | None,
+         ls_options: LSOptions | None) -> EstimationResult:
+    """The method's run of :func:`estimate`."""
     if meth == "adaptive":
         obs = default_observer()
         run = obs.run_log(log)
