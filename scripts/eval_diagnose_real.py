@@ -112,12 +112,14 @@ def main(argv: list[str] | None = None) -> int:
                  "positive": int(np.sum(g[off] > 0)), "diverged": int(np.sum(off & ~np.isfinite(g))),
                  "pairs": int(off.sum())} for w, g in G.items()}
     # per run: its model on every other run (does each run's model carry over, not only most pairs?)
+    def per_run(row: np.ndarray, mask: np.ndarray) -> dict:
+        fin = row[mask & np.isfinite(row)]  # a diverged transfer (gain -inf) is counted, not averaged
+        return {"mean": float(np.mean(fin)) if fin.size else None, "median": float(np.median(fin)) if fin.size else None,
+                "min": float(np.min(fin)) if fin.size else None, "positive": int(np.sum(row[mask] > 0)),
+                "diverged": int(np.sum(mask & ~np.isfinite(row))), "pairs": int(mask.sum())}
+
     for w, g in G.items():
-        cross[w]["per_run"] = {p.stem: {"mean": float(np.mean(g[i][off[i] & np.isfinite(g[i])])),
-                                        "median": float(np.median(g[i][off[i] & np.isfinite(g[i])])),
-                                        "min": float(np.min(g[i][off[i] & np.isfinite(g[i])])),
-                                        "positive": int(np.sum(g[i][off[i]] > 0)), "pairs": int(off[i].sum())}
-                               for i, p in enumerate(paths)}
+        cross[w]["per_run"] = {p.stem: per_run(g[i], off[i]) for i, p in enumerate(paths)}
     extended_rows = [i for i, r in enumerate(rows) if r["extension"]]
     ext_off = np.zeros_like(off)
     ext_off[extended_rows] = True
@@ -162,10 +164,14 @@ def main(argv: list[str] | None = None) -> int:
     lines += ["", "Per run: its reported model (every fitted value) on each of the other runs, and with its sensor "
                   "parameters at nominal:", "",
               "| run | mean gain | median | min | positive | mean, sensors at nominal | positive |", "|---|---|---|---|---|---|---|"]
+    def num(v: float | None) -> str:
+        return "-" if v is None else f"{v:.3f}"
+
     for p in paths:
         a, b = cross["reported_all"]["per_run"][p.stem], cross["reported_vehicle"]["per_run"][p.stem]
-        lines.append(f"| {p.stem} | {a['mean']:.3f} | {a['median']:.3f} | {a['min']:.3f} | {a['positive']} of {a['pairs']} | "
-                     f"{b['mean']:.3f} | {b['positive']} of {b['pairs']} |")
+        div = f" ({a['diverged']} diverged)" if a["diverged"] else ""
+        lines.append(f"| {p.stem} | {num(a['mean'])} | {num(a['median'])} | {num(a['min'])} | {a['positive']} of "
+                     f"{a['pairs']}{div} | {num(b['mean'])} | {b['positive']} of {b['pairs']} |")
     eb = cross["extension_beats_verdict"]
     if eb["pairs"]:
         lines += ["", f"From the {len(extended_rows)} extended runs: the extension predicts the other run better than "

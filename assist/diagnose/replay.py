@@ -58,9 +58,10 @@ state no sensor reads is the lateral velocity (0 in the measured start); near th
 friction limit a saturating model's replay from ``vy = 0`` diverges, so where the
 measured lateral force asks a saturating model for a sideslip (its force misses at
 ``vy = 0`` and also at the sideslip the scan finds for the same model with a linear
-tire) that the fit from ``vy = 0`` did not reach, the fit is made again from that
-sideslip and the better fit kept (:meth:`Replay.start`,
-:meth:`Replay.fit_from_starts`); linear-tire models keep the one start.
+tire), the fit is made again from that sideslip and the better fit kept
+(:meth:`Replay.fit_from_starts`); on a saturated plateau, where the first sample's force cannot
+tell the candidate sideslips apart, the start is the candidate whose replay of the window fits it
+best (:meth:`Replay.start`); linear-tire models keep the one start.
 
 Integration: :func:`ptw_env.integrate.simulate` (RK4, inputs held over each
 sample) with as many substeps as keep ``|lambda h| <= EIG_STEP`` for the

@@ -247,11 +247,12 @@ class DiagnosisReport:
         chans = list(self.nominal_rmse)
         fig, axs = plt.subplots(3, 1, figsize=(11, 9), constrained_layout=True)
         label, gain = self.model_label(), self.gain if self.extension is None else float(self.extension["gain"])
+        state = "explained" if self.explained else ("extended, explained" if self.extended else "NOT explained")
         noise = np.array([self.noise[c] for c in chans])
         if d:
             t, Y, Yn, Ye, sc = d["t"], d["Y"], d["Ynom"], d["Yext"], d["score"]
             before, after = (_rms(Y - Ym, sc) / noise for Ym in (Yn, Ye))
-            order = sorted(range(len(chans)), key=lambda i: after[i] / before[i])[:2]
+            order = sorted(range(len(chans)), key=lambda i: after[i] / max(before[i], 1e-300))[:2]
             for ax, i in zip(axs[:2], order):
                 def line(a):
                     a = np.where(sc[..., i], a[..., i], np.nan)
@@ -262,11 +263,12 @@ class DiagnosisReport:
                 ax.plot(tt, line(Ye), color="C0", lw=1.0, ls="--", label=label)
                 ax.set(xlabel="t [s] (held-out windows)", ylabel=f"{chans[i]} [{UNITS[chans[i]]}]",
                        title=f"{chans[i]}: RMS residual {before[i]:.3g} -> {after[i]:.3g} noise levels")
-                ax.legend(loc="upper right", fontsize=8)
+                ax.legend(loc="best", fontsize=8)
         else:  # a report without its replays (e.g. read back from JSON): the report's own figures
             before = np.array([self.nominal_rmse[c] for c in chans]) / noise
             after = np.array([self.verdict_rmse[c] for c in chans]) / noise
-            label = f"verdict ({causes_text(self.causes, ', ')})"
+            label, gain = f"verdict ({causes_text(self.causes, ', ')})", self.gain
+            state = "explained" if self.explained else "NOT explained"
         ax = axs[2]
         x = np.arange(len(chans))
         ax.bar(x - 0.2, before, 0.4, color="C3", label="nominal model")
@@ -274,7 +276,6 @@ class DiagnosisReport:
         ax.axhline(1.0, color="k", lw=0.8, ls=":", label="noise level")
         ax.set_xticks(x, chans)
         ax.set_yscale("log")
-        state = "explained" if self.explained else ("extended, explained" if self.extended else "NOT explained")
         ax.set(ylabel="held-out RMS residual / noise",
                title=f"residual before/after; {state}; held-out gain {gain:.3f}")
         ax.legend(fontsize=8)

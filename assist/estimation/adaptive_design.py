@@ -649,10 +649,15 @@ _DESIGNS: dict[tuple, AdaptiveObserverDesign] = {}
 
 
 def _memo(kind: str, options: AdaptiveDesignOptions | None, model: LPVModel | None, make) -> AdaptiveObserverDesign:
-    """One design per (kind, options, vehicle model, speed range) and process; at most 8 kept."""
+    """One design per (kind, options, vehicle model, speed range, sensor noise) and process; at most 8 kept.
+
+    The noise is part of the key because it follows the vehicle's channel ranges, which follow its design range
+    (:func:`ptw_env.sensors.channel_ranges`), not only its model: two files of one model with different design
+    ranges (the robot bicycle's preset and its data folder's file) shared a design, so ``estimate`` on one ride
+    gave front scales 0.2 or 1.9 depending on which vehicle a process had designed for first."""
     o = AdaptiveDesignOptions() if options is None else options
     m = model_for(o, model)
-    key = (kind, o, m.vehicle.identity()["model_sha256"], m.vmin, m.vmax)
+    key = (kind, o, m.vehicle.identity()["model_sha256"], m.vmin, m.vmax, tuple(o.noise_std(m.vehicle).tolist()))
     if key not in _DESIGNS:
         if len(_DESIGNS) >= 8:
             _DESIGNS.pop(next(iter(_DESIGNS)))

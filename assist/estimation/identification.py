@@ -383,7 +383,7 @@ class DirectLS:
 
     def result(self) -> EstimationResult:
         return EstimationResult(self.name, self.t_, self.stiffness_, None,
-                                {"options": self.options.__dict__, "split": self.split})
+                                {"options": self.options.__dict__, "split": self.split}, nominal=self.model.theta0)
 
 
 class InversionLS:
@@ -430,7 +430,8 @@ class InversionLS:
         return self
 
     def result(self) -> EstimationResult:
-        return EstimationResult(self.name, self.t_, self.stiffness_, None, {"options": self.options.__dict__})
+        return EstimationResult(self.name, self.t_, self.stiffness_, None, {"options": self.options.__dict__},
+                                nominal=self.model.theta0)
 
 
 # --------------------------------------------------------------------------- joint EKF
@@ -622,7 +623,8 @@ class JointEKF:
     def result(self) -> EstimationResult:
         return EstimationResult("ukf", self.t_, self.stiffness_, self.x_hat_,
                                 {"filter": "extended Kalman filter (joint states and stiffness scales)",
-                                 "stiffness_std_final": [float(s) for s in self.stiffness_std_[-1]]})
+                                 "stiffness_std_final": [float(s) for s in self.stiffness_std_[-1]]},
+                                nominal=self.model.theta0)
 
 
 # --------------------------------------------------------------------------- one entry point
