@@ -30,6 +30,12 @@ it was first timed: the disclosed ``nominal_urban.csv`` and seven simulated 90 s
 with a 60 kg payload, handling with tire stiffness 0.8 / 0.84, handling with 20 N m s/rad of steering
 damping, urban with a 0.01 rad/s yaw-gyro bias, slalom with tire saturation at mu_peak 0.6.
 
+Besides the median set, one 90 s log that the table of effects cannot explain, so that the diagnosis
+also runs its extension search (closure terms): the urban ride, seed 108, with a yaw-rate gyro reading
+1.2x (a scale error, not in effects.md: the measured yaw rate plus 0.2 times the log's true yaw rate
+``x_r``). It is timed like the others but kept out of the median (issue 19: "the extension search must
+not make it slower than that").
+
 The first diagnosis of a fresh interpreter also pays numba's cache load; the
 script warms it up on a short ride first (not timed).
 """
@@ -91,6 +97,20 @@ MEDIAN_SET: tuple[tuple[str, dict], ...] = (
 )
 
 
+#: The log that needs the extension search (module docstring): (scenario, seed, yaw-gyro scale factor).
+EXTENSION_CASE = ("urban", 108, 1.2)
+
+
+def gyro_scaled(log, k: float):
+    """``log`` with its yaw-rate channel read by a gyro of scale factor ``k``: ``yaw_rate + (k - 1) x_r``
+    (``x_r`` the log's true yaw rate), the noise kept."""
+    from ptw_env.logs import RideLog
+
+    cols = dict(log.columns)
+    cols["yaw_rate"] = cols["yaw_rate"] + (k - 1.0) * cols["x_r"]
+    return RideLog(t=log.t, columns=cols, meta=dict(log.meta), path=None)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--log", action="append", default=None, help="ride log(s) to diagnose (default: see above)")
@@ -127,6 +147,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"{c} " + " ".join(f"{v:g}" for v in p.values()) for c, p in eff.items())
             logs.append((f"{scen}, 90 s, seed {seed}: {what}",
                          ride_scenario(make_scenario(scen, duration_s=90.0), effects=eff or None, seed=seed).log))
+        scen, seed, k = EXTENSION_CASE
+        logs.append((f"{scen}, 90 s, seed {seed}: yaw gyro x{k:g} *",
+                     gyro_scaled(ride_scenario(make_scenario(scen, duration_s=90.0), seed=seed).log, k)))
+    n_median = len(logs) - (0 if a.log else 1)
     print(f"pairs: {a.pairs}")
     print(f"{'log':52s} {'seconds':>7s} {'replay s':>8s} {'x replay':>8s} {'x realtime':>10s} {'sim share':>9s} "
           f"{'vehicle-steps':>14s} {'BLAS x':>6s}  verdict")
@@ -146,15 +170,21 @@ def main(argv: list[str] | None = None) -> int:
                     best[kind] = (dt, rep)
         dt, rep = best["one"]
         ref = min(ref, nominal_replay_seconds(src))
-        worst = max(worst, dt)
+        if len(times) < n_median:
+            worst = max(worst, dt)
         times.append(dt)
         duration = _as_log(src).duration_s
-        verdict = causes_text(rep.causes, ", ")
+        def described(r) -> str:  # the verdict and the closure terms of an extension
+            ext = "" if r.extension is None else " + " + ", ".join(f"{t['name']} {t['coefficient']:g}"
+                                                                   for t in r.extension["terms"])
+            return causes_text(r.causes, ", ") + ext
+
+        verdict = described(rep)
         blas = "-"
         if "default" in best:
             dt2, rep2 = best["default"]
             ratios.append(dt2 / dt)
-            same = causes_text(rep2.causes, ", ") == verdict and rep2.sim_steps == rep.sim_steps
+            same = described(rep2) == verdict and rep2.sim_steps == rep.sim_steps
             blas = f"{dt2 / dt:.2f}" + ("" if same else " differs")
         print(f"{name:52s} {dt:7.1f} {ref:8.3f} {dt / ref:8.0f} {duration / dt:10.2f} "
               f"{100 * rep.sim_seconds / dt:8.0f} % {rep.sim_steps:14,d} {blas:>6s}  {verdict}")
@@ -162,8 +192,11 @@ def main(argv: list[str] | None = None) -> int:
           "x realtime: log duration / diagnosis time; BLAS x: time with the default BLAS threads / with one")
     import statistics
 
-    med = statistics.median(times)
-    print(f"median {med:.1f} s over {len(times)} logs; slowest {worst:.1f} s "
+    med = statistics.median(times[:n_median])
+    if len(times) > n_median:
+        print(f"* not in the median: a log the table cannot explain, diagnosed with the extension search: "
+              f"{times[-1]:.1f} s")
+    print(f"median {med:.1f} s over {n_median} logs; slowest {worst:.1f} s "
           f"(targets: median < 5 s, issue 19: {'met' if med < 5.0 else 'NOT met'}; every log < 60 s, issue 7: "
           f"{'met' if worst < 60.0 else 'NOT met'}; {os.cpu_count()} CPUs visible; other processes share them)")
     if ratios:

@@ -36,10 +36,23 @@ def _check_contract(rep) -> None:
         assert t["equation"] == CLOSURES[t["name"]].equation and t["std"] is not None and t["std"] > 0
 
 
-def test_yaw_gyro_scale_error_is_found_as_a_sensor_closure():
+def test_yaw_gyro_scale_error_is_found_as_a_sensor_closure(monkeypatch):
     """A yaw-rate gyro reading 1.2x: the closure yaw_rate * (1 + c) with c within 25 % of 0.2, alone,
-    and the extended model explains the log (measured: c = 0.204 +- 0.001)."""
+    and the extended model explains the log (measured: c = 0.204 +- 0.001). The search starts from the
+    nominal model and, its extension explaining the log, does not search from the table verdict too."""
+    import assist.diagnose.extension as extension
+
+    bases = []
+    search = extension.extend
+
+    def counted(fitter, base_z, *args, **kwargs):
+        bases.append(base_z)
+        return search(fitter, base_z, *args, **kwargs)
+
+    monkeypatch.setattr(extension, "extend", counted)
     rep = diagnose(yaw_gyro_scale(ride("handling", None, seed=43), 1.2), progress=False)
+    assert rep.causes[0]["cause"] != "none"  # a table verdict (a stand-in) that the search could have started from
+    assert len(bases) == 1 and rep.extension["extends"] == "nominal model", (len(bases), rep.extension["extends"])
     _check_contract(rep)
     terms = _terms(rep)
     assert set(terms) == {"yaw_rate_scale"}, terms

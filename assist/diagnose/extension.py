@@ -65,6 +65,7 @@ class Extension:
     base: list[dict] = field(default_factory=list)  #: the table causes it extends ([] : the nominal model)
     k_base: int = 0  #: free parameters of the base
     steps: list[dict] = field(default_factory=list)  #: per step: the candidates' held-out scores
+    explains: bool = False  #: the search stopped because the extended model explains the log to within the noise
 
     @property
     def k(self) -> int:
@@ -132,6 +133,7 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
     z = np.array(base_z, dtype=float)
     steps_json: list[dict] = []
     fits: dict[str, Fit] = {}
+    done = False  # stopped because the extended model explains the log
     S0, x0 = _held_out(fitter, z[None], test_w, score_steps)
     S_base, x_cur = float(S0.sum()), x0[0]
     for _ in range(MAX_TERMS):
@@ -180,6 +182,7 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
         z = fits[best.name].z
         x_cur = xs[names.index(best.name)]
         if explains(z):
+            done = True
             break
     if not chosen:
         return None
@@ -194,7 +197,7 @@ def extend(fitter: HypothesisFitter, base_z: np.ndarray, test_w: np.ndarray, cou
                       "unit": t.unit, "std": None if sd is None else float(f"{sd:.3g}")})
     return Extension(terms=terms, z=z, gain=1.0 - math.sqrt(S_ext / S_nominal) if S_nominal > 0 else 0.0,
                      gain_over_base=1.0 - math.sqrt(S_ext / S_base) if S_base > 0 else 0.0, S=S_ext,
-                     steps=steps_json)
+                     steps=steps_json, explains=done)
 
 
 def best_extension(fitter: HypothesisFitter, bases: list[tuple[list[dict], int, np.ndarray]], test_w: np.ndarray,
@@ -205,7 +208,13 @@ def best_extension(fitter: HypothesisFitter, bases: list[tuple[list[dict], int, 
     base's and its terms'): a table cause that stood in for an effect outside the table (a steering
     damping for Coulomb friction) must not be kept under the closures that explain it better.
     The table verdict itself (held-out ``S_verdict`` with ``k_verdict`` parameters) competes on the
-    same score: an extension that does not beat it is not reported (``None``)."""
+    same score: an extension that does not beat it is not reported (``None``).
+
+    The bases are tried in order, the sparsest first (the nominal model): once an extension explains the log to
+    within the noise, the later bases are not tried, as :func:`extend` adds no term once its model explains
+    the log (issue 19: the sparsest set that explains the residual). Measured on a 90 s urban log with a yaw
+    gyro reading 1.2x (``scripts/bench_diagnose.py``): the nominal model with ``yaw_rate_scale`` 0.1994
+    explains it in 4.4 s; the search from the table verdict took 12.8 s more and was not chosen."""
     n = float(counts.sum())
     best, best_score = None, -math.inf
     if S_verdict is not None:
@@ -218,6 +227,8 @@ def best_extension(fitter: HypothesisFitter, bases: list[tuple[list[dict], int, 
         score = (S_nominal - e.S) / n - selection.PARAM_PENALTY * e.k
         if score > best_score:
             best, best_score = e, score
+        if best is e and e.explains:
+            break
     return best
 
 
