@@ -42,9 +42,10 @@ def one_blas_thread(fn: _F) -> _F:
     For work that alternates small linear algebra with the batched kernels (:func:`simulate`, which runs
     on numba's OpenMP threads, one per core). After each call that OpenBLAS spreads over its threads,
     they keep spinning for a while, waiting for the next one, and take the cores from the kernel that
-    follows. Measured on 2 cores (``scripts/bench_diagnose.py``, eight 90 s logs, the two run in turn on the
-    same log, the same verdicts and vehicle-steps): ``ptw-assist diagnose`` takes 1.34-1.82x as long with
-    OpenBLAS's default threads (median 1.45x, nine logs; with one, 63-74 % of its time is in the kernel). The matrices of
+    follows. Measured on 2 cores (``scripts/bench_diagnose.py``, nine 90 s logs: its median set and a log that
+    needs the extension search; the two run in turn on the
+    same log, the same verdicts and vehicle-steps): ``ptw-assist diagnose`` takes 1.31-1.78x as long with
+    OpenBLAS's default threads (median 1.43x, nine logs; with one, 63-75 % of its time is in the kernel). The matrices of
     such work are small (10 x 10 normal equations, least-squares Jacobians of a few columns): what a second
     BLAS thread gains there is less than what its spinning costs the kernel.
     Entered at each call, so that a BLAS library loaded after import is limited too. The limit is the

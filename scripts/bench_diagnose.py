@@ -170,8 +170,7 @@ def main(argv: list[str] | None = None) -> int:
                     best[kind] = (dt, rep)
         dt, rep = best["one"]
         ref = min(ref, nominal_replay_seconds(src))
-        if len(times) < n_median:
-            worst = max(worst, dt)
+        worst = max(worst, dt)  # every log, the one outside the median too (issue 7: every log < 60 s)
         times.append(dt)
         duration = _as_log(src).duration_s
         def described(r) -> str:  # the verdict and the closure terms of an extension
@@ -196,12 +195,12 @@ def main(argv: list[str] | None = None) -> int:
     if len(times) > n_median:
         print(f"* not in the median: a log the table cannot explain, diagnosed with the extension search: "
               f"{times[-1]:.1f} s")
-    print(f"median {med:.1f} s over {n_median} logs; slowest {worst:.1f} s "
+    print(f"median {med:.1f} s over {n_median} logs; slowest of all {len(times)} {worst:.1f} s "
           f"(targets: median < 5 s, issue 19: {'met' if med < 5.0 else 'NOT met'}; every log < 60 s, issue 7: "
           f"{'met' if worst < 60.0 else 'NOT met'}; {os.cpu_count()} CPUs visible; other processes share them)")
     if ratios:
-        print(f"with the default BLAS threads: median {statistics.median(ratios):.2f}x the time, "
-              f"{min(ratios):.2f}-{max(ratios):.2f}x")
+        print(f"with the default BLAS threads: median {statistics.median(ratios):.2f}x the time over {len(ratios)} "
+              f"logs, {min(ratios):.2f}-{max(ratios):.2f}x")
     return 0
 
 

@@ -246,7 +246,7 @@ def diagnose(
         ext = best_extension(fitter, bases, test_w, counts, chans, float(S[0].sum()), explains,
                              score_steps=SCORE_STATE_STEPS, S_verdict=float(S[hv].sum()),
                              k_verdict=fits[verdict.name].hypothesis.k)
-        extended = ext is not None and explains(ext.z)
+        extended = ext is not None and ext.explains  # extend() stops as soon as its model explains the log
     roll = win.Y[..., chans.index("roll")] if "roll" in chans else _replayed_roll(replay, xa[0], all_w)
     nominal_where = breakdown(win, ra[0] * replay.sigma, sig_v, roll)
     residual = breakdown(win, rv * replay.sigma, sig_v, roll)
@@ -258,11 +258,16 @@ def diagnose(
     hyp_json = hypotheses_json(selection.order(ranked), lambda r: replay.params.to_causes(r.causes, fits[r.name].z))
     rms_0, rms_hv = (np.sqrt(((rt[h] * replay.sigma) ** 2).sum(axis=(0, 1)) / counts.sum(axis=0)) for h in (0, hv))
     sizes = [len(f.hypothesis.causes) for f in fits.values()]
-    method = method_json(window_s, round(win.lead * win.dt, 6), len(fit_w), len(test_w), sizes.count(1),
-                         sizes.count(2), _pairs_rule(pairs), quantum, notes)
     Yn = replay.outputs(Z[0][None], test_w, _states(replay, Z[0], test_w))[0]
     z_shown = ext.z if ext is not None else Z[hv]  # the figure shows the extended model when there is one
     Ye = replay.outputs(z_shown[None], test_w, _states(replay, z_shown, test_w))[0]
+    if verdict.name != "none":
+        Yv = Ye if ext is None else replay.outputs(Z[hv][None], test_w, _states(replay, Z[hv], test_w))[0]
+        q_note = _within_quantum(verdict.gain_channels, Yv, Yn, win.score[test_w], chans, quantum)
+        if q_note:
+            notes = notes + [q_note]
+    method = method_json(window_s, round(win.lead * win.dt, 6), len(fit_w), len(test_w), sizes.count(1),
+                         sizes.count(2), _pairs_rule(pairs), quantum, notes)
     plot_data = {"t": win.t0[test_w][:, None] + np.arange(win.n) * win.dt, "Y": win.Y[test_w], "Ynom": Yn,
                  "Yext": Ye, "score": win.score[test_w]}
     return DiagnosisReport(
@@ -419,6 +424,26 @@ def _pairs_rule(pairs: bool | str) -> str:
     return (f"forward selection: the best single cause with the next {PAIR_PARTNERS} and with the "
             f"{PAIR_PARTNERS_SCORE} a score test finds would add most, and pairs among the {PAIR_TOP} best "
             f"(causes improving the fit alone by >= {PAIR_MIN})")
+
+
+def _within_quantum(gain_channels: dict[str, float], Yv: np.ndarray, Yn: np.ndarray, score: np.ndarray,
+                    chans: tuple[str, ...], quantum: float | None) -> str | None:
+    """A note when the verdict may be reading the steering encoder's quantisation, a data effect: its held-out
+    gain is largest in the steering angle, and on every held-out sample it moves the predicted angle by less
+    than half the encoder's step ``q`` (``Yv``, ``Yn``: the verdict's and the nominal model's predicted channels,
+    (windows, samples, channels)). In a steady turn the angle barely moves, so its rounding is a constant bias,
+    priced as white noise (``q^2/12``, :mod:`assist.diagnose.noise`), that a small change of any steady-steer
+    parameter absorbs (the clean steady turn of README "Saturation or stiffness?": a 1 % stiffness change moved
+    the angle by at most 0.8 mrad, q = 6.1 mrad). None otherwise."""
+    if quantum is None or "delta" not in chans or max(gain_channels, key=gain_channels.get) != "delta":
+        return None
+    j = chans.index("delta")
+    moved = np.abs(Yv[..., j] - Yn[..., j])[score[..., j]]
+    if moved.size == 0 or moved.max() >= 0.5 * quantum:
+        return None
+    return (f"the verdict's held-out gain is mostly in the steering angle (gain {gain_channels['delta']:.3f}), where it "
+            f"moves the prediction by at most {1e3 * moved.max():.2f} mrad, under half the encoder's step "
+            f"({1e3 * quantum:.2f} mrad): it may be reading the encoder's quantisation (a data effect), not the vehicle")
 
 
 def _states(replay: Replay, z: np.ndarray, widx: np.ndarray) -> np.ndarray:
