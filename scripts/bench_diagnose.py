@@ -65,22 +65,22 @@ def nominal_replay_seconds(log, repeat: int = 3) -> float:
     every replay window of the diagnosis, initial states fitted by the same Gauss-Newton steps."""
     import numpy as np
 
-    from assist.diagnose.data import auto_window, make_windows
-    from assist.diagnose.params import NOMINAL
+    from assist.diagnose.diagnosis import replay_windows
     from assist.diagnose.replay import Replay
     from ptw_env.integrate import one_blas_thread
     from ptw_env.sensors import DEFAULT_NOISE_STD
     from ptw_env.vehicle import REFERENCE_SCOOTER
+    from ptw_env.vehicle_files import vehicle_of_log
 
     log = _as_log(log)
-    v = REFERENCE_SCOOTER
-    win, _ = make_windows(log, auto_window(log.duration_s, 0.1), 0.1, v.vmin, v.vmax)
+    v = vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER  # the vehicle diagnose() takes for this log
+    win, _ = replay_windows(log, v)
     rp = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in win.channels]), v)
     fit = one_blas_thread(rp.fit_states)
     best = float("inf")
     for _ in range(max(1, repeat)):
         t = time.perf_counter()
-        fit(NOMINAL[None], np.arange(len(win)))
+        fit(rp.params.nominal[None], np.arange(len(win)))
         best = min(best, time.perf_counter() - t)
     return best
 

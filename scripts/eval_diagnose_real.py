@@ -105,21 +105,21 @@ def main(argv: list[str] | None = None) -> int:
                     G[w][i, j] = score_model(log, rep, model=model, parts=parts).gain
     cross_s = time.perf_counter() - t0
     off = ~np.eye(len(paths), dtype=bool)
-    # a transfer whose replay diverged has gain -inf: counted as diverged, left out of median and min
-    cross = {w: {"matrix_from_row_on_column": [[None if not np.isfinite(v) else round(float(v), 4) for v in row]
-                                               for row in g],
-                 "median": float(np.median(g[off & np.isfinite(g)])), "min": float(np.min(g[off & np.isfinite(g)])),
-                 "positive": int(np.sum(g[off] > 0)), "diverged": int(np.sum(off & ~np.isfinite(g))),
-                 "pairs": int(off.sum())} for w, g in G.items()}
-    # per run: its model on every other run (does each run's model carry over, not only most pairs?)
-    def per_run(row: np.ndarray, mask: np.ndarray) -> dict:
-        fin = row[mask & np.isfinite(row)]  # a diverged transfer (gain -inf) is counted, not averaged
+    def gains(g: np.ndarray, mask: np.ndarray) -> dict:
+        """Mean, median and min of the gains ``g[mask]``; a transfer whose replay diverged (gain -inf) is
+        counted as diverged, left out of the mean, median and min (None when every one diverged)."""
+        fin = g[mask & np.isfinite(g)]
         return {"mean": float(np.mean(fin)) if fin.size else None, "median": float(np.median(fin)) if fin.size else None,
-                "min": float(np.min(fin)) if fin.size else None, "positive": int(np.sum(row[mask] > 0)),
-                "diverged": int(np.sum(mask & ~np.isfinite(row))), "pairs": int(mask.sum())}
+                "min": float(np.min(fin)) if fin.size else None, "positive": int(np.sum(g[mask] > 0)),
+                "diverged": int(np.sum(mask & ~np.isfinite(g))), "pairs": int(mask.sum())}
 
-    for w, g in G.items():
-        cross[w]["per_run"] = {p.stem: per_run(g[i], off[i]) for i, p in enumerate(paths)}
+    def num(v: float | None) -> str:
+        return "-" if v is None else f"{v:.3f}"
+
+    cross = {w: {"matrix_from_row_on_column": [[None if not np.isfinite(v) else round(float(v), 4) for v in row]
+                                               for row in g], **gains(g, off),
+                 # per run: its model on every other run (does each run's model carry over, not only most pairs?)
+                 "per_run": {p.stem: gains(g[i], off[i]) for i, p in enumerate(paths)}} for w, g in G.items()}
     extended_rows = [i for i, r in enumerate(rows) if r["extension"]]
     ext_off = np.zeros_like(off)
     ext_off[extended_rows] = True
@@ -160,13 +160,10 @@ def main(argv: list[str] | None = None) -> int:
                      ("reported_vehicle", "the same, sensor parameters at nominal"),
                      ("verdict_all", "effects.md verdict alone")):
         c = cross[w]
-        lines.append(f"| {label} | {c['median']:.3f} | {c['min']:.3f} | {c['positive']} of {c['pairs']} | {c['diverged']} |")
+        lines.append(f"| {label} | {num(c['median'])} | {num(c['min'])} | {c['positive']} of {c['pairs']} | {c['diverged']} |")
     lines += ["", "Per run: its reported model (every fitted value) on each of the other runs, and with its sensor "
                   "parameters at nominal:", "",
               "| run | mean gain | median | min | positive | mean, sensors at nominal | positive |", "|---|---|---|---|---|---|---|"]
-    def num(v: float | None) -> str:
-        return "-" if v is None else f"{v:.3f}"
-
     for p in paths:
         a, b = cross["reported_all"]["per_run"][p.stem], cross["reported_vehicle"]["per_run"][p.stem]
         div = f" ({a['diverged']} diverged)" if a["diverged"] else ""

@@ -180,7 +180,7 @@ def test_a_clean_steady_turn_names_nothing():
 
 def test_the_clean_steady_turns_verdict_says_it_may_be_the_encoder():
     """The defect above is said, not hidden (issue 19: never treat a data problem as a vehicle effect without
-    saying so): the verdict's gain is mostly in the steering angle, where it moves the prediction by less than
+    saying so): the verdict's gain is largest in the steering angle, where it moves the prediction by less than
     half an encoder step (measured 0.81 mrad, q = 6.14 mrad), and the report's notes say it may be reading the
     encoder's quantisation."""
     rep = diagnose(ride("constant_radius", None, seed=61), pairs=False, progress=False)

@@ -40,6 +40,11 @@ DEFAULT_DESIGN_WHY = (
     "bound, README)")
 
 
+#: A stiffness whose final-third mean is within this fraction of an edge of the adaptive observer's band
+#: (the projection clips at the edge itself) is said to be held by the band.
+BAND_EDGE = 0.01
+
+
 def resolve_design(a: argparse.Namespace) -> str:
     """Fill ``a.gains`` and ``a.parametrisation`` left at their defaults; return why this design runs."""
     if a.law == "paper":
@@ -151,9 +156,10 @@ def _build(p: argparse.ArgumentParser):
               f"[{model.vmin:g}, {model.vmax:g}] m/s")
         if method == "adaptive":  # an estimate held by the projection's band says nothing about the tire
             lo, hi = obs.band
-            edge = [f"{n} at {'the lower' if r <= lo * 1.01 else 'the upper'} edge of the adaptation band "
+            near_lo, near_hi = lo * (1.0 + BAND_EDGE), hi * (1.0 - BAND_EDGE)
+            edge = [f"{n} at {'the lower' if r <= near_lo else 'the upper'} edge of the adaptation band "
                     f"({r:.3f} of nominal; band {lo:g}-{hi:g})"
-                    for n, r in zip(THETA_NAMES, mean / model.theta0) if r <= lo * 1.01 or r >= hi * 0.99]
+                    for n, r in zip(THETA_NAMES, mean / model.theta0) if r <= near_lo or r >= near_hi]
             if edge:
                 trimmed = trimmed + ["; ".join(edge) + ": held by the band, not determined by the log (a model "
                                      "error the stiffness stands in for, a sensor offset or too little excitation; "

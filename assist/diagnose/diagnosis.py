@@ -441,7 +441,7 @@ def _within_quantum(gain_channels: dict[str, float], Yv: np.ndarray, Yn: np.ndar
     moved = np.abs(Yv[..., j] - Yn[..., j])[score[..., j]]
     if moved.size == 0 or moved.max() >= 0.5 * quantum:
         return None
-    return (f"the verdict's held-out gain is mostly in the steering angle (gain {gain_channels['delta']:.3f}), where it "
+    return (f"the verdict's held-out gain is largest in the steering angle (gain {gain_channels['delta']:.3f}), where it "
             f"moves the prediction by at most {1e3 * moved.max():.2f} mrad, under half the encoder's step "
             f"({1e3 * quantum:.2f} mrad): it may be reading the encoder's quantisation (a data effect), not the vehicle")
 

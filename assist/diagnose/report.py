@@ -170,10 +170,13 @@ class DiagnosisReport:
         """What the reported model is, in words: ``verdict (causes)``, or ``extended model (base + closure
         terms)`` when the model was extended."""
         if self.extension is None:
-            return f"verdict ({causes_text(self.causes, ', ')})"
+            return self._verdict_label()
         base = self.extension.get("extends")
         base_text = causes_text(base, ", ") if isinstance(base, list) and base else "nominal"
         return f"extended model ({base_text} + {', '.join(t['name'] for t in self.extension['terms'])})"
+
+    def _verdict_label(self) -> str:
+        return f"verdict ({causes_text(self.causes, ', ')})"
 
     # -- JSON ----------------------------------------------------------------------------
     def to_json(self) -> dict[str, Any]:
@@ -267,7 +270,7 @@ class DiagnosisReport:
         else:  # a report without its replays (e.g. read back from JSON): the report's own figures
             before = np.array([self.nominal_rmse[c] for c in chans]) / noise
             after = np.array([self.verdict_rmse[c] for c in chans]) / noise
-            label, gain = f"verdict ({causes_text(self.causes, ', ')})", self.gain
+            label, gain = self._verdict_label(), self.gain
             state = "explained" if self.explained else "NOT explained"
         ax = axs[2]
         x = np.arange(len(chans))

@@ -150,8 +150,8 @@ class EstimationResult:
     info : dict
         Method-specific figures.
     nominal : ndarray (4,) or None
-        The nominal stiffnesses of the vehicle's model [N/rad] (:func:`estimate` sets them), for the ratios
-        of :meth:`to_json`.
+        The nominal stiffnesses of the vehicle's model [N/rad] (every method's result carries them), for the
+        ratios of :meth:`to_json`.
     """
 
     method: str
@@ -656,13 +656,6 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
     def default_observer() -> AdaptiveObserver:
         return AdaptiveObserver(default_design(model=model)) if observer is None else observer
 
-    return dataclasses.replace(_run(meth, log, model, default_observer, sensors, x_hat, ls_options),
-                               nominal=np.asarray(model.theta0, dtype=float))
-
-
-def _run(meth: str, log, model: LPVModel, default_observer, sensors: SensorConfig | None, x_hat: np.ndarray | None,
-         ls_options: LSOptions | None) -> EstimationResult:
-    """The method's run of :func:`estimate`."""
     if meth == "adaptive":
         obs = default_observer()
         run = obs.run_log(log)
@@ -670,14 +663,14 @@ def _run(meth: str, log, model: LPVModel, default_observer, sensors: SensorConfi
             raise IdentificationError(f"the adaptive observer diverged at t = {run.t[run.samples - 1]:.2f} s")
         info = {"law": obs.law, "equality_residual_rel": obs.design.residual_rel,
                 "stiffness_std_final": [float(v) for v in obs.stiffness_std]}
-        return EstimationResult("adaptive", run.t, run.stiffness, run.x_hat, info)
+        return EstimationResult("adaptive", run.t, run.stiffness, run.x_hat, info, nominal=model.theta0)
     if meth == "ukf":
         return JointEKF(sensors=sensors, model=model).fit(log).result()
     if x_hat is None:
         x_hat = default_observer().run_log(log).x_hat
     est = DirectLS(ls_options, model=model) if meth == "direct" else InversionLS(ls_options, model=model)
     res = est.fit(log, x_hat=x_hat).result()
-    return EstimationResult(res.method, res.t, res.stiffness, x_hat, res.info)
+    return dataclasses.replace(res, x_hat=x_hat)
 
 
 # --------------------------------------------------------------------------- a time-varying effect
