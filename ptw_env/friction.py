@@ -70,7 +70,7 @@ import numpy as np
 from .dynamics import Plant, compile_plant
 from .effects import Effects, as_effects
 from .integrate import Stepper
-from .vehicle import Vehicle
+from .vehicle import Vehicle, speed_array
 
 #: Road friction that the nominal tire stiffness of model.md refers to (dry asphalt) [-].
 REFERENCE_FRICTION = 0.9
@@ -252,7 +252,7 @@ class FrictionPlants:
         self.vehicle = vehicle
         self.effects = as_effects(effects).dynamic
         self.dt = float(dt)
-        self.speeds = None if speeds is None else np.asarray(speeds, dtype=float)
+        self.speeds = None if speeds is None else speed_array(speeds)  # checked here, not at the first new friction
         self._cache: dict[float, tuple[Plant, Stepper]] = {}
 
     def _entry(self, mu: float) -> tuple[Plant, Stepper]:

@@ -24,7 +24,7 @@ from threadpoolctl import threadpool_limits
 
 from . import kernels
 from .dynamics import Plant, compile_plant, linearise
-from .vehicle import Vehicle
+from .vehicle import Vehicle, speed_array
 
 #: Largest internal RK4 step [s].
 DEFAULT_SUBSTEP = 0.0025
@@ -70,9 +70,10 @@ def speed_grid(vehicle: Vehicle, speeds) -> np.ndarray:
     (a 40th of the vehicle's range; both ends included; one speed for a ride at constant speed). Sizing a
     ride's step at its own speeds keeps ``|lambda h|`` of every mode it meets within :data:`MAX_LAMBDA_H`
     without paying, at 50 km/h, for a tire lag (``~vx / sigma``) met only at the top of the range."""
-    v = np.asarray(speeds, dtype=float).ravel()
-    if not v.size or not np.all(np.isfinite(v)):
-        raise SimulationInputError(f"speeds must be finite numbers of m/s, got {speeds!r}")
+    try:
+        v = speed_array(speeds)
+    except ValueError as exc:
+        raise SimulationInputError(str(exc)) from None
     lo, hi = float(v.min()), float(v.max())
     span = max(vehicle.vmax - vehicle.vmin, 1e-9)
     n = 1 if hi - lo <= 1e-9 else 1 + max(1, math.ceil(40 * (hi - lo) / span - 1e-9))

@@ -116,6 +116,19 @@ REFERENCE_TIRES = TireParameters(
 )
 
 
+def speed_array(speeds) -> np.ndarray:
+    """``speeds`` [m/s] as a flat float array, or one ValueError naming ``speeds``: not numbers, none, or one
+    that is not finite. The one check of the ``speeds=`` arguments (:meth:`Vehicle.fastest_rate`,
+    :func:`ptw_env.integrate.speed_grid` and what takes speeds through them)."""
+    try:
+        v = np.atleast_1d(np.asarray(speeds, dtype=float)).ravel()
+    except (TypeError, ValueError):
+        raise ValueError(f"speeds must be numbers of m/s, got {speeds!r}") from None
+    if not v.size or not np.all(np.isfinite(v)):
+        raise ValueError(f"speeds must be finite numbers of m/s, at least one, got {speeds!r}")
+    return v
+
+
 @dataclass(frozen=True, eq=False)
 class Vehicle:
     """Linear part of a Sharp-type PTW lateral model, ``E x' = (A0 + vx A1) x + B tau``.
@@ -224,10 +237,7 @@ class Vehicle:
         """``max |eig(E^-1 A(vx))|`` [1/s] over the given speeds [m/s]: the stiffest mode met at those
         speeds (:attr:`fastest_eigenvalue` is this over the whole range; an environment sizes its step
         for the speeds its rides reach, :func:`ptw_env.integrate.speed_grid`)."""
-        v = np.atleast_1d(np.asarray(speeds, dtype=float)).ravel()
-        if not v.size or not np.all(np.isfinite(v)):
-            raise ValueError(f"speeds must be finite numbers of m/s, got {speeds!r}")
-        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(float(x)))).max() for x in v))
+        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(float(x)))).max() for x in speed_array(speeds)))
 
     @property
     def steer_torque_scale(self) -> float:

@@ -4,7 +4,7 @@ same run.
 Two versions of the package cannot live in one process, so each figure is one process per version, the two
 run one after the other in alternating order (this one first, then the other first, ...): a drift of the
 machine's speed then falls on both alike. Each process times ``gymnasium.make_vec("PTWRoll-v0", N,
-vectorization_mode="vector_entry_point")`` with the other checkout's own ``scripts/bench_vector.py``
+vectorization_mode="vector_entry_point")`` with its own checkout's ``scripts/bench_vector.py``
 ``rate`` (random torques of a tenth of the box, 2100 steps with autoresets, best of 2). Prints each pair
 and the ratio this / other, then the median ratio.
 
@@ -46,7 +46,8 @@ def one(root: Path, n: int) -> float:
     """env-steps/s of checkout ``root``'s native vector env at ``n`` envs, in a fresh process."""
     out = subprocess.run([sys.executable, "-c", CHILD, str(root), str(n)], capture_output=True, text=True)
     if out.returncode != 0:
-        sys.exit(f"bench_vector_ab: the run of {root} failed:\n{out.stderr.strip().splitlines()[-1]}")
+        last = (out.stderr.strip().splitlines() or [f"exit status {out.returncode}, nothing on stderr"])[-1]
+        sys.exit(f"bench_vector_ab: the run of {root} failed:\n{last}")
     return float(out.stdout.strip().splitlines()[-1])
 
 

@@ -276,6 +276,8 @@ def test_one_blas_thread_limits_blas_while_the_function_runs_and_restores_it():
     from assist.diagnose import diagnose, score_model
     from ptw_env.integrate import one_blas_thread
 
+    assert diagnose.__wrapped__ is not diagnose and score_model.__wrapped__ is not score_model  # both carry it
+
     def blas_threads():
         return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
 
@@ -322,3 +324,20 @@ def test_diagnose_reads_the_log_with_one_blas_thread(monkeypatch):
             dg.diagnose("ride.csv")
         assert blas_threads() == before and max(before) == 2
     assert seen == [[1] * len(before)]
+
+
+@pytest.mark.parametrize("speeds", ["fast", {"a": 1}, [[1.0, 2.0], [3.0]], [], [float("nan")]])
+def test_bad_speeds_are_one_clear_error(speeds):
+    """``speeds=`` that are not finite numbers of m/s: one error naming ``speeds``, never numpy's."""
+    from ptw_env.friction import FrictionPlants, FrictionSchedule
+    from ptw_env.integrate import SimulationInputError, speed_grid, substeps_for
+    from ptw_env.vehicle import REFERENCE_SCOOTER
+
+    with pytest.raises(SimulationInputError, match="speeds must be"):
+        speed_grid(REFERENCE_SCOOTER, speeds)
+    with pytest.raises(SimulationInputError, match="speeds must be"):
+        substeps_for(0.01, vehicle=REFERENCE_SCOOTER, speeds=speeds)
+    with pytest.raises(ValueError, match="speeds must be"):
+        REFERENCE_SCOOTER.fastest_rate(speeds)
+    with pytest.raises(ValueError, match="speeds must be"):  # when built, not at the first new friction
+        FrictionPlants(FrictionSchedule.constant(0.9), speeds=speeds)
