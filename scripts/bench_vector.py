@@ -27,6 +27,8 @@ Prints:
   also whole 20 s episodes with random torques, with the resets each run had (not like for like: the
   randomised vehicles fall more often, and a fall is an early reset; each env timed on its own, best of 2,
   as the native figures are, so machine drift is not paired out there);
+* what sizing the RK4 step for the ride's speeds buys: the same randomised env with ``step_speeds="vehicle"``
+  (the step for the vehicle's whole speed range, as before 2026-11-26), timed in turn with the others;
 * the same with the vehicle itself randomised too (``vehicle_scale:`` keys on the ``sharp1971`` vehicle file:
   rider mass, rear-frame height, roll inertia, caster, front cornering stiffness; the drawn vehicles'
   matrices built by Table V) besides the six keys, against that vehicle fixed (the substeps of both are
@@ -185,6 +187,10 @@ def main() -> None:
         fixed = gym.make_vec("PTWRoll-v0", num_envs=1024, vectorization_mode="vector_entry_point", effects=base, **extra)
         same = gym.make_vec("PTWRoll-v0", num_envs=1024, vectorization_mode="vector_entry_point", effects=base,
                             substeps=int(rnd.unwrapped.nsub.max()), **extra)
+        # the same randomised env with the step sized for the vehicle's whole speed range (before 2026-11-26)
+        whole = gym.make_vec("PTWRoll-v0", num_envs=1024, vectorization_mode="vector_entry_point", effects=base,
+                             randomize=rnd_spec, step_speeds="vehicle", **extra)
+        res[f"substeps_whole_{label}"] = int(whole.unwrapped.nsub.max())
         res[f"substeps_{label}"] = [int(fixed.unwrapped.nsub.max()), int(rnd.unwrapped.nsub.max())]
         one_config = bool(np.array_equal(fixed.unwrapped.nsub, same.unwrapped.nsub))  # every ride's count
         res[f"one_config_{label}"] = one_config
@@ -194,7 +200,8 @@ def main() -> None:
         # the like-for-like runs timed step by step in turn (paired_rates): the machine's speed drifts by
         # several per cent between runs a few seconds apart
         for r in RESETS_PER_STEP:
-            got = paired_rates(dict(kinds), min(steps, LIKE_STEPS), 1 if args.quick else ROUNDS, r)
+            got = paired_rates({**dict(kinds), "whole": whole}, min(steps, LIKE_STEPS), 1 if args.quick else ROUNDS, r)
+            res[f"whole_{label}_reset{r}"] = got["whole"][0]
             for kind, _ in kinds:
                 res[f"{kind}_{label}_reset{r}"], res[f"{kind}_{label}_reset{r}_ends"] = got[kind]
     n1024 = res["native"][1024]
@@ -224,6 +231,12 @@ def main() -> None:
             res[f"noise_{label}"] = gap
             print(f"  (the fixed model at its own and at the same substeps is one configuration here, measured "
                   f"twice: up to {100 * gap:.1f} % apart, the noise of these figures)")
+        slower = [res[f"randomized_{label}_reset{r}"] / res[f"whole_{label}_reset{r}"] - 1.0 for r in RESETS_PER_STEP]
+        res[f"per_ride_gain_{label}"] = slower
+        print(f"  the same randomised env with the step sized for the vehicle's whole range (step_speeds='vehicle', "
+              f"{res[f'substeps_whole_{label}']} substeps), timed in turn with the others: per-ride sizing is "
+              + " / ".join(f"{100 * x:+.1f} %" for x in slower) + f" faster at {' / '.join(map(str, RESETS_PER_STEP))} "
+              "resets a step")
         ef, er = res[f"fixed_{label}_ends_per_step"], res[f"randomized_{label}_ends_per_step"]
         print(f"  whole 20 s episodes, random torques (not like for like: {er:.2f} vs {ef:.2f} ends a step): "
               f"{res[f'randomized_{label}_episodes']:,.0f} vs {res[f'fixed_{label}_episodes']:,.0f} env-steps/s")
