@@ -73,7 +73,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.special import ndtri
@@ -471,7 +471,16 @@ class Randomization:
         """The draws of :meth:`sample_table` before their inverse transforms: one ``random(number of keys)`` per
         generator, shape ``(len(rngs), len(keys))`` (the vector env draws these at a reset and maps many envs'
         together, :meth:`from_uniforms`)."""
-        return np.array([rng.random(len(self.dists)) for rng in rngs]).reshape(len(rngs), len(self.dists))
+        out = np.empty((len(rngs), len(self.dists)))
+        self.uniforms_into(rngs, range(len(rngs)), out)
+        return out
+
+    def uniforms_into(self, rngs: "list[np.random.Generator]", rows: "Sequence[int]", out: np.ndarray) -> None:
+        """:meth:`uniforms` written into rows ``rows`` of ``out`` (float64, C-contiguous, ``len(keys)`` columns):
+        generator ``rngs[j]`` fills ``out[rows[j]]`` (``random(out=...)``: the numbers of ``random(len(keys))``,
+        without a temporary array per generator)."""
+        for rng, r in zip(rngs, rows):
+            rng.random(out=out[r])
 
     def from_uniforms(self, u: np.ndarray) -> np.ndarray:
         """The values of :meth:`sample_table` from its uniform draws ``u`` (:meth:`uniforms`), columns in key

@@ -64,6 +64,28 @@ from .sensors import CHANNELS, NOISE_BLOCK, draw_noise, sense_into, sensor_terms
 COMPILE_BATCH = 256
 
 
+@njit(cache=True)
+def take_next(idx, plant, sensors, rtable, nxt, W, nW, s, ns, f, nf, b, nb, mass, nmass, fz, nfz,
+              offset, noff, std, nstd, gain, ngain):
+    """Rows ``idx`` of the next-episode tables copied into this episode's: the randomised values
+    (``rtable <- nxt``), with ``plant`` the compiled plants (``W``, ``inv_sigma``, ``fmax``, ``bank``, ``mass``,
+    ``fz``), with ``sensors`` the sensor terms (``offset``, ``std``, ``gain``). One compiled call instead of a
+    numpy fancy-index copy per array (each ~1-2 us of call overhead, most of a randomised reset's cost)."""
+    for i in idx:
+        rtable[i, :] = nxt[i, :]
+        if plant:
+            W[i, :, :] = nW[i, :, :]
+            s[i, :] = ns[i, :]
+            f[i, :] = nf[i, :]
+            b[i] = nb[i]
+            mass[i] = nmass[i]
+            fz[i, :] = nfz[i, :]
+        if sensors:
+            offset[i, :] = noff[i, :]
+            std[i, :] = nstd[i, :]
+            gain[i] = ngain[i]
+
+
 
 @njit(cache=True, parallel=True)
 def vector_step(actions, mode, x, k, pidx, W, inv_sigma, fmax, bank, mass, fz, dt, nsub,
@@ -201,9 +223,10 @@ class PTWRollVectorEnv(VectorEnv):
         self._mass = np.full(K, float(tpl.plant.mass))
         self._fz = np.repeat(tpl.plant.fz[None], K, axis=0)
         self._pidx = np.arange(n) if per_env else np.zeros(n, dtype=np.int64)
-        if per_env:
-            self._nW, self._ns, self._nf = self._W.copy(), self._inv_sigma.copy(), self._fmax.copy()
-            self._nb, self._nmass, self._nfz = self._bank.copy(), self._mass.copy(), self._fz.copy()
+        # the next episode's plants (take_next); without per-env plants, copies of the shared one stand in
+        # (never copied)
+        self._nW, self._ns, self._nf = self._W.copy(), self._inv_sigma.copy(), self._fmax.copy()
+        self._nb, self._nmass, self._nfz = self._bank.copy(), self._mass.copy(), self._fz.copy()
         sm = tpl.sensor_model
         self._n_delay, self._frac, self._q, self._q_first, self._gps_step = (
             sm.n_delay, sm.frac_delay, sm.quantum, sm.quantise_first, sm.gps_step)
@@ -249,8 +272,9 @@ class PTWRollVectorEnv(VectorEnv):
         self._per_env_plant = per_env
         self._sensor_keys = self.randomization is not None and any(
             k.startswith("sensor") or k.partition(":")[0] in ("gyro_bias", "ay_frame") for k in self.randomization.keys)
-        if self._sensor_keys:
-            self._noff, self._nstd, self._ngain = self._offset.copy(), self._std.copy(), self._gain.copy()
+        # the next episode's sensor terms (take_next); one row stands in when no key changes them (never copied)
+        rows = slice(None) if self._sensor_keys else slice(0, 1)
+        self._noff, self._nstd, self._ngain = self._offset[rows].copy(), self._std[rows].copy(), self._gain[rows].copy()
         self._batch = min(n, COMPILE_BATCH)
         self._pose = np.zeros(3)
         self._trace: list[tuple[float, float, float]] = []
@@ -303,12 +327,11 @@ class PTWRollVectorEnv(VectorEnv):
                 self._draw(idx)  # this episode's values first
             if self._pending[idx].any():
                 self._compile_pending()
-            self._rtable[idx] = self._next[idx]
-            if self._per_env_plant:  # the next episode's plant, compiled ahead
-                self._W[idx], self._inv_sigma[idx], self._fmax[idx] = self._nW[idx], self._ns[idx], self._nf[idx]
-                self._bank[idx], self._mass[idx], self._fz[idx] = self._nb[idx], self._nmass[idx], self._nfz[idx]
-            if self._sensor_keys:
-                self._offset[idx], self._std[idx], self._gain[idx] = self._noff[idx], self._nstd[idx], self._ngain[idx]
+            # the next episode's values, plant and sensor terms, compiled ahead
+            take_next(idx, self._per_env_plant, self._sensor_keys, self._rtable, self._next,
+                      self._W, self._nW, self._inv_sigma, self._ns, self._fmax, self._nf, self._bank, self._nb,
+                      self._mass, self._nmass, self._fz, self._nfz,
+                      self._offset, self._noff, self._std, self._nstd, self._gain, self._ngain)
             self._draw(idx)  # the next episode's values, compiled later with other envs' (_compile_pending)
         for j, i in enumerate(idx):
             if x0 is None:
@@ -335,7 +358,7 @@ class PTWRollVectorEnv(VectorEnv):
         :meth:`~ptw_env.randomize.Randomization.sample_many` gives)."""
         if not len(idx):
             return
-        self._next_u[idx] = self.randomization.uniforms([self._rngs[i] for i in idx])
+        self.randomization.uniforms_into([self._rngs[i] for i in idx], idx, self._next_u)
         self._pending[idx] = True
 
     def _compile_pending(self) -> None:

@@ -37,7 +37,8 @@ Prints:
 
 Target (issue 21): >= 1,000,000 env-steps/s at N = 1024 on 2 cores; randomisation <= 10 % of it.
 
-Run: ``python scripts/bench_vector.py [--quick] [--json OUT.json]``.
+Run: ``python scripts/bench_vector.py [--quick] [--randomization-only] [--json OUT.json]`` (the second: only the
+like-for-like randomisation runs, to repeat them).
 """
 
 from __future__ import annotations
@@ -162,6 +163,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer steps (a smoke run)")
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    ap.add_argument("--randomization-only", action="store_true",
+                    help="only the like-for-like randomisation runs (paired_rates; about a minute), to repeat them")
     add_overwrite(ap)
     args = ap.parse_args()
     out = output_file(ap, "--json", args.json, args.overwrite)
@@ -169,16 +172,18 @@ def main() -> None:
     # (autoreset) inside the timed window
     steps, repeats = (50, 1) if args.quick else (EPISODE_STEPS, 2)
 
+    full = not args.randomization_only
     res: dict = {"native": {}, "memory_bytes_per_env": {}, "steps_timed": steps}
-    for n in (1, 16, 256, 1024, 4096):
+    for n in (1, 16, 256, 1024, 4096) if full else ():
         envs = gym.make_vec("PTWRoll-v0", num_envs=n, vectorization_mode="vector_entry_point")
         res["native"][n] = rate(envs, steps, repeats)[0]
         res["memory_bytes_per_env"][n] = envs.unwrapped.memory_bytes / n
         envs.close()
-    sync = gym.make_vec("PTWRoll-v0", num_envs=16, vectorization_mode="sync")
-    res["sync_16"] = rate(sync, min(steps, 600), repeats)[0]
-    cart = gym.make_vec("CartPole-v1", num_envs=1024, vectorization_mode="vector_entry_point")
-    res["cartpole_native_1024"] = rate(cart, steps, repeats)[0]
+    if full:
+        sync = gym.make_vec("PTWRoll-v0", num_envs=16, vectorization_mode="sync")
+        res["sync_16"] = rate(sync, min(steps, 600), repeats)[0]
+        cart = gym.make_vec("CartPole-v1", num_envs=1024, vectorization_mode="vector_entry_point")
+        res["cartpole_native_1024"] = rate(cart, steps, repeats)[0]
     base = {"tire_saturation": {"mu_peak": 0.75}}
     both = {**RANDOMIZE, **VEHICLE_RANDOMIZE}
     for label, extra, rnd_spec in (("scooter", {}, RANDOMIZE), ("vehicle", {"vehicle": VEHICLE}, both)):
@@ -195,7 +200,7 @@ def main() -> None:
         one_config = bool(np.array_equal(fixed.unwrapped.nsub, same.unwrapped.nsub))  # every ride's count
         res[f"one_config_{label}"] = one_config
         kinds = (("fixed", fixed), ("same", same), ("randomized", rnd))
-        for kind, envs in kinds:
+        for kind, envs in kinds if full else ():
             res[f"{kind}_{label}_episodes"], res[f"{kind}_{label}_ends_per_step"] = rate(envs, steps, repeats)
         # the like-for-like runs timed step by step in turn (paired_rates): the machine's speed drifts by
         # several per cent between runs a few seconds apart
@@ -204,14 +209,15 @@ def main() -> None:
             res[f"whole_{label}_reset{r}"] = got["whole"][0]
             for kind, _ in kinds:
                 res[f"{kind}_{label}_reset{r}"], res[f"{kind}_{label}_reset{r}_ends"] = got[kind]
-    n1024 = res["native"][1024]
-    print("native vector env (PTWRoll-v0, sensors, reward, cost, autoreset):")
-    for n, r in res["native"].items():
-        print(f"  N = {n:5d}: {r:12,.0f} env-steps/s   {res['memory_bytes_per_env'][n]:8,.0f} bytes/env")
-    print(f"same env, SyncVectorEnv N = 16:      {res['sync_16']:12,.0f} env-steps/s  "
-          f"-> native at 1024 is {n1024 / res['sync_16']:.1f}x")
-    print(f"CartPole-v1 native vector N = 1024:   {res['cartpole_native_1024']:12,.0f} env-steps/s  "
-          f"-> native PTW at 1024 is {n1024 / res['cartpole_native_1024']:.3f}x of it")
+    if full:
+        n1024 = res["native"][1024]
+        print("native vector env (PTWRoll-v0, sensors, reward, cost, autoreset):")
+        for n, r in res["native"].items():
+            print(f"  N = {n:5d}: {r:12,.0f} env-steps/s   {res['memory_bytes_per_env'][n]:8,.0f} bytes/env")
+        print(f"same env, SyncVectorEnv N = 16:      {res['sync_16']:12,.0f} env-steps/s  "
+              f"-> native at 1024 is {n1024 / res['sync_16']:.1f}x")
+        print(f"CartPole-v1 native vector N = 1024:   {res['cartpole_native_1024']:12,.0f} env-steps/s  "
+              f"-> native PTW at 1024 is {n1024 / res['cartpole_native_1024']:.3f}x of it")
     for label, what in (("scooter", "reference scooter, 6 effect/sensor keys"),
                         ("vehicle", f"{VEHICLE}, the 6 keys and 5 vehicle parameters")):
         nf, nr = res[f"substeps_{label}"]
@@ -237,10 +243,12 @@ def main() -> None:
               f"{res[f'substeps_whole_{label}']} substeps), timed in turn with the others: per-ride sizing is "
               + " / ".join(f"{100 * x:+.1f} %" for x in slower) + f" faster at {' / '.join(map(str, RESETS_PER_STEP))} "
               "resets a step")
-        ef, er = res[f"fixed_{label}_ends_per_step"], res[f"randomized_{label}_ends_per_step"]
-        print(f"  whole 20 s episodes, random torques (not like for like: {er:.2f} vs {ef:.2f} ends a step): "
-              f"{res[f'randomized_{label}_episodes']:,.0f} vs {res[f'fixed_{label}_episodes']:,.0f} env-steps/s")
-    print(f"target >= 1,000,000 env-steps/s at N = 1024: {'met' if n1024 >= 1e6 else 'NOT met'} ({n1024:,.0f})")
+        if full:
+            ef, er = res[f"fixed_{label}_ends_per_step"], res[f"randomized_{label}_ends_per_step"]
+            print(f"  whole 20 s episodes, random torques (not like for like: {er:.2f} vs {ef:.2f} ends a step): "
+                  f"{res[f'randomized_{label}_episodes']:,.0f} vs {res[f'fixed_{label}_episodes']:,.0f} env-steps/s")
+    if full:
+        print(f"target >= 1,000,000 env-steps/s at N = 1024: {'met' if n1024 >= 1e6 else 'NOT met'} ({n1024:,.0f})")
     if out is not None:
         out.write_text(json.dumps(res, indent=2) + "\n")
 
