@@ -22,6 +22,51 @@ from ptw_env.logs import sidecar_noise_pct
 METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
 
 
+def _offsets_option(text: str) -> tuple[str, ...]:
+    """``--offsets``: ``all``, ``none`` or a comma-separated list of channels of ``OFFSET_CHANNELS``."""
+    from assist.estimation.identification import OFFSET_CHANNELS
+
+    if text == "all":
+        return OFFSET_CHANNELS
+    if text == "none":
+        return ()
+    chans = tuple(c.strip() for c in text.split(","))
+    bad = [c for c in chans if c not in OFFSET_CHANNELS]
+    if bad or len(set(chans)) != len(chans):
+        raise argparse.ArgumentTypeError(f"expected all, none or distinct channels of {','.join(OFFSET_CHANNELS)}, "
+                                         f"got {text!r}")
+    return chans
+
+
+def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None], method: str) -> list[str]:
+    """The notes ``estimate`` prints for the sensor offsets it estimated (``info["offsets"]`` and
+    ``info["offset_filter_nis"]`` of :func:`assist.estimation.identification.estimate`): those removed, those
+    found but kept (the filter's model does not explain the log even with them: its worst channels named),
+    those estimated jointly (``ukf``)."""
+    from assist.estimation.identification import NIS_EXPLAINED, OFFSET_SIGNIFICANCE
+
+    def fmt(items):
+        return ", ".join(f"{c} {e['value']:+.4g} {e['unit']} (std {e['std']:.2g})" for c, e in items)
+
+    sig = [(c, e) for c, e in offsets.items() if e["significant"]]
+    if not sig:
+        return []
+    beyond = f"beyond {OFFSET_SIGNIFICANCE:g} standard deviations"
+    if method == "ukf":
+        return [f"sensor offset(s) {beyond}, estimated jointly with the states and stiffness: {fmt(sig)} (an offset, "
+                "or a model error it stands in for: 'ptw-assist diagnose' tells them apart)"]
+    removed = [(c, e) for c, e in sig if e.get("removed")]
+    if removed:
+        return [f"sensor offset(s) {beyond} removed from the log before the estimate: {fmt(removed)} (the filter "
+                f"with them explains every channel to within {NIS_EXPLAINED:g} times its noise variance; a road bank "
+                "the model lacks reads much the same at a steady speed: if the road is banked, give --road-bank)"]
+    worst = sorted(((v, c) for c, v in nis.items() if v is not None), reverse=True)[:2]
+    return [f"sensor offset(s) {beyond} found but not removed: {fmt(sig)}; the model does not explain the log even "
+            "with them (mean normalised innovation " + ", ".join(f"{c} {v:.1f}" for v, c in worst)
+            + f"; at most {NIS_EXPLAINED:g} when it does), so they would stand in for a model error: "
+              "'ptw-assist diagnose' says which part of the model misses"]
+
+
 def _noise_pct(a: argparse.Namespace, meta: dict) -> float | None:
     if a.noise is not None:
         return float(a.noise)
@@ -87,6 +132,11 @@ def _build(p: argparse.ArgumentParser):
                         "(default 0: level); an unknown bank biases the stiffness estimate")
     p.add_argument("--tau-a", type=number(0, 1e6, unit="s", lo_open=True), default=None, metavar="S",
                    help="paper's law: adaptation time constant [s] (default 10)")
+    p.add_argument("--offsets", type=_offsets_option, default="all", metavar="CHANNELS",
+                   help="sensor offsets estimated as nuisance parameters (joint EKF with the states and stiffness; "
+                        "for the other methods run first, each offset beyond 3 of its standard deviations removed "
+                        "from the log before the method runs): all (default: delta, yaw_rate, roll_rate, ay), none, "
+                        "or a comma-separated list of those channels")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
@@ -132,10 +182,15 @@ def _build(p: argparse.ArgumentParser):
         sensors = SensorConfig.from_percent(pct, vehicle=vehicle) if pct is not None else SensorConfig()
         method = "ukf" if a.method == "ekf" else a.method
         try:
-            res = estimate(log, method, sensors=sensors, observer=obs, model=model)
+            res = estimate(log, method, sensors=sensors, observer=obs, model=model, offsets=a.offsets)
         except ValueError as exc:
             raise CLIError(f"{a.log}: {exc}") from None
         out = res.to_json()
+        offsets = res.info.get("offsets")
+        if offsets is not None:  # nuisance parameters: what the data say each sensor reads beside the model
+            out["sensor_offsets"] = offsets
+            out["offset_filter_nis"] = res.info["offset_filter_nis"]
+            trimmed = trimmed + offset_notes(offsets, res.info["offset_filter_nis"], method)
         out["log"] = str(a.log)
         out["vehicle"] = vehicle.identity()
         out["observer_speed_range"] = [model.vmin, model.vmax]

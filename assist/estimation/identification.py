@@ -90,6 +90,22 @@ each step. cli.md names this method ``ukf``; the issue allows an unscented
 or extended filter, and the model being bilinear in ``(x, s)`` with mild
 sines, the extended one is used.
 
+Sensor offsets as nuisance parameters (``offsets=``, issue 19): constant
+offsets ``b_c`` of chosen channels (:data:`OFFSET_CHANNELS`) join the state,
+``z = [x, s, b]``, ``b' = 0``, ``y_c = C_c x + b_c``. For a linear model a
+constant output offset is observable whenever the plant matrix has no zero
+eigenvalue (no equilibrium ``A x = 0`` with ``C x = b != 0``), which holds for
+the model.md structure away from a capsize speed; the filter's covariance says
+how well each is determined. The prior is zero with a standard deviation of
+:data:`OFFSET_PRIOR_NOISE` of the channel's noise standard deviations (the
+sensors' own scale, no vehicle number). :func:`estimate` runs this filter first
+for the other methods and removes each offset that stands out of its standard
+deviation by :data:`OFFSET_SIGNIFICANCE` before the method runs, provided the
+filter with the offsets explains the log: each channel's mean normalised
+innovation squared ``e^2 / S`` over the log's second half (1 for a consistent
+filter) at most :data:`NIS_EXPLAINED`. Where it does not, the "offsets" are what
+a model error leaves in the channels: they are reported, not removed.
+
 References
 ----------
 .. [1] M. Fouka, L. Nehaoua, H. Arioui, "Motorcycle state estimation and tire
@@ -107,7 +123,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import scipy.linalg as sla
@@ -127,6 +143,14 @@ from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, THETA_NAMES, 
 
 #: Methods of :func:`estimate` (cli.md ``--method``; ``ekf`` is an alias of ``ukf``).
 METHODS = ("adaptive", "direct", "inversion", "ukf")
+#: Channels whose constant offset the joint EKF can carry as a nuisance parameter (``offsets=``): the steering
+#: encoder, both gyros and the lateral accelerometer (``delta_rate`` is the encoder's derivative: no offset).
+OFFSET_CHANNELS = ("delta", "yaw_rate", "roll_rate", "ay")
+#: Prior standard deviation of an offset, in standard deviations of its channel's noise (quantisation included).
+OFFSET_PRIOR_NOISE = 5.0
+#: An estimated offset is removed from the log before the other methods run when it exceeds this many of its
+#: standard deviations (the filter's final covariance): the offsets the data say are there.
+OFFSET_SIGNIFICANCE = 3.0
 
 
 class IdentificationError(ValueError):
@@ -443,10 +467,10 @@ def _f_aug(x, s, M, c, g, vx, inv_sigma, fmax, bank, H0, H1, c0, out):
 
 
 @njit(cache=True)
-def _ekf_run(Zout, Pdiag, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, nsub, H0, H1, c0, C, rvar,
+def _ekf_run(Zout, Pdiag, Nis, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, nsub, H0, H1, c0, C, rvar,
              Qc, fd_eps, s_lo, s_hi):
     K = Y.shape[0]
-    n = 12
+    n = z.shape[0]  # 8 states, 4 stiffness scales, then the sensor offsets (constant: no dynamics)
     M = np.empty((8, 8))
     c = np.empty(8)
     g = np.empty((8, 2))
@@ -466,24 +490,25 @@ def _ekf_run(Zout, Pdiag, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, nsub, 
                 continue
             h = C[r]
             e = yr
-            for i in range(8):
+            for i in range(n):
                 e -= h[i] * z[i]
             Ph = np.zeros(n)
             for i in range(n):
                 acc = 0.0
-                for j in range(8):
+                for j in range(n):
                     acc += P[i, j] * h[j]
                 Ph[i] = acc
             S = rvar[r]
-            for j in range(8):
+            for j in range(n):
                 S += h[j] * Ph[j]
+            Nis[k, r] = e * e / S  # normalised innovation squared: 1 on average when the model explains the data
             Kg = Ph / S
             for i in range(n):
                 z[i] += Kg[i] * e
             # P = (I - K h) P (I - K h)^T + K R K^T
             A = np.eye(n)
             for i in range(n):
-                for j in range(8):
+                for j in range(n):
                     A[i, j] -= Kg[i] * h[j]
             P[:, :] = A @ P @ A.T + rvar[r] * np.outer(Kg, Kg)
         for j in range(4):
@@ -564,15 +589,22 @@ class JointEKF:
         Initial standard deviation of ``s`` (the prior is the nominal).
     band : (float, float)
         Stiffness band (multiples of ``C_0``) the estimate is clipped to.
+    offsets : sequence of str
+        Channels of :data:`OFFSET_CHANNELS` whose constant offset is estimated with the states (module
+        docstring; default none).
+    road_bank : float
+        Known bank of the road [rad] (effects.md ``road_bank``) in the filter's plant (default level): a bank
+        the plant lacks reads as offsets of ``ay`` and the gyros.
 
-    ``fit(log)`` sets ``stiffness_`` (K, 4), ``x_hat_`` (K, 8), ``stiffness_std_`` (K, 4), ``t_``.
+    ``fit(log)`` sets ``stiffness_`` (K, 4), ``x_hat_`` (K, 8), ``stiffness_std_`` (K, 4), ``t_``, and
+    ``offsets_``, ``offsets_std_`` (K, number of offsets; channel units: rad, rad/s, m/s^2).
     """
 
     name = "ukf"
 
     def __init__(self, sensors: SensorConfig | None = None, process_std=DEFAULT_PROCESS_STD,
                  stiffness_walk: float = 0.005, stiffness_std0: float = 0.5, band=DEFAULT_BAND,
-                 model: LPVModel | None = None) -> None:
+                 model: LPVModel | None = None, offsets: Sequence[str] = (), road_bank: float = 0.0) -> None:
         self.model = build_lpv_model() if model is None else model
         self.sensors = SensorConfig.from_percent(5, vehicle=self.model.vehicle) if sensors is None else sensors
         if not isinstance(self.sensors, SensorConfig):
@@ -588,12 +620,16 @@ class JointEKF:
             raise IdentificationError(f"band must be (lo, hi) with 0 < lo < 1 < hi, got {band!r}")
         self.process_std, self.stiffness_walk, self.stiffness_std0 = q, float(stiffness_walk), float(stiffness_std0)
         self.band = (lo, hi)
+        self.offsets = offset_channels(offsets)
+        if not (isinstance(road_bank, (int, float)) and math.isfinite(road_bank)):
+            raise IdentificationError(f"road_bank must be a finite number of rad, got {road_bank!r}")
+        self.road_bank = float(road_bank)
 
     def fit(self, log) -> "JointEKF":
         m = self.model
         t, Y, tau, vx, dt = _log_arrays(log)
         vx = np.clip(vx, m.vehicle.vmin, m.vehicle.vmax)
-        plant = compile_plant(m.vehicle)
+        plant = compile_plant(m.vehicle, {"road_bank": {"bank_rad": self.road_bank}} if self.road_bank else None)
         W, isg, fmx, bk = plant.flat()
         rvar = np.array([self.sensors.noise_std[c] ** 2 for c in OUTPUT_NAMES])
         if self.sensors.delta_quantum:
@@ -601,30 +637,103 @@ class JointEKF:
         else:
             rvar[0] += ENCODER_QUANTUM**2 / 12.0
         rvar = np.maximum(rvar, 1e-10)
-        Qc = np.diag(np.r_[self.process_std**2, np.full(4, self.stiffness_walk**2)])
-        P0 = np.diag(np.r_[(STATE_SCALE * 0.1) ** 2, np.full(4, self.stiffness_std0**2)])
-        z = np.zeros(12)
+        # the offsets: constant states b_c read by their channel's output row (y_c = C_c x + b_c)
+        rows = [OUTPUT_NAMES.index(c) for c in self.offsets]
+        nb = len(rows)
+        n = 12 + nb
+        C = np.zeros((len(OUTPUT_NAMES), n))
+        C[:, :8] = m.C
+        for j, r in enumerate(rows):
+            C[r, 12 + j] = 1.0
+        b_std0 = OFFSET_PRIOR_NOISE * np.sqrt(rvar[rows])
+        Qc = np.diag(np.r_[self.process_std**2, np.full(4, self.stiffness_walk**2), np.zeros(nb)])
+        P0 = np.diag(np.r_[(STATE_SCALE * 0.1) ** 2, np.full(4, self.stiffness_std0**2), b_std0**2])
+        z = np.zeros(n)
         K = len(t)
-        Z = np.zeros((K, 12))
-        Pd = np.zeros((K, 12))
+        Z = np.zeros((K, n))
+        Pd = np.zeros((K, n))
+        nis = np.full((K, len(OUTPUT_NAMES)), np.nan)
         lo, hi = self.band
-        n = _ekf_run(Z, Pd, z, P0.copy(), np.ascontiguousarray(Y), np.ascontiguousarray(tau), np.ascontiguousarray(vx),
-                     W[0], isg[0], fmx[0], float(bk[0]), dt, substeps_for(dt), np.ascontiguousarray(m.H0),
-                     np.ascontiguousarray(m.H1), np.ascontiguousarray(m.theta0), np.ascontiguousarray(m.C),
-                     rvar, Qc, STATE_SCALE * 1e-4, np.full(4, lo - 1.0), np.full(4, hi - 1.0))
-        if n < K:
-            raise IdentificationError(f"the EKF diverged at t = {t[n - 1]:.2f} s (sample {n - 1})")
+        k_end = _ekf_run(Z, Pd, nis, z, P0.copy(), np.ascontiguousarray(Y), np.ascontiguousarray(tau),
+                         np.ascontiguousarray(vx), W[0], isg[0], fmx[0], float(bk[0]), dt, substeps_for(dt),
+                         np.ascontiguousarray(m.H0), np.ascontiguousarray(m.H1), np.ascontiguousarray(m.theta0), C,
+                         rvar, Qc, STATE_SCALE * 1e-4, np.full(4, lo - 1.0), np.full(4, hi - 1.0))
+        if k_end < K:
+            raise IdentificationError(f"the EKF diverged at t = {t[k_end - 1]:.2f} s (sample {k_end - 1})")
         self.t_ = t
         self.x_hat_ = Z[:, :8]
-        self.stiffness_ = (1.0 + Z[:, 8:]) * m.theta0
-        self.stiffness_std_ = np.sqrt(np.maximum(Pd[:, 8:], 0.0)) * m.theta0
+        self.stiffness_ = (1.0 + Z[:, 8:12]) * m.theta0
+        self.stiffness_std_ = np.sqrt(np.maximum(Pd[:, 8:12], 0.0)) * m.theta0
+        self.offsets_ = Z[:, 12:]
+        self.offsets_std_ = np.sqrt(np.maximum(Pd[:, 12:], 0.0))
+        # mean normalised innovation squared per channel over the log's second half (the first holds the
+        # filter's convergence from its prior): near 1 when the model (with its offsets) explains the channel
+        half = nis[K // 2:]
+        self.nis_ = {c: float(np.nanmean(half[:, j])) if np.isfinite(half[:, j]).any() else None
+                     for j, c in enumerate(OUTPUT_NAMES)}
         return self
 
+    @property
+    def explains(self) -> bool:
+        """True when the filter's model (with its offsets) explains every channel read: mean normalised
+        innovation squared at most :data:`NIS_EXPLAINED` (:attr:`nis_`)."""
+        return all(v is None or v <= NIS_EXPLAINED for v in self.nis_.values())
+
+    def offset_table(self) -> dict[str, dict[str, Any]]:
+        """``{channel: {"value", "std", "unit", "significant", "nis"}}`` at the log's end (channel units):
+        ``significant`` when ``|value| > OFFSET_SIGNIFICANCE std``; ``nis`` the channel's mean normalised
+        innovation squared over the log's second half (:attr:`nis_`): an offset can only be read as a sensor's
+        when the model with it explains its channel (``nis`` up to :data:`NIS_EXPLAINED`); far above that the
+        "offset" is what a model error leaves in the channel."""
+        out: dict[str, dict[str, Any]] = {}
+        for j, c in enumerate(self.offsets):
+            v, sd = float(self.offsets_[-1, j]), float(self.offsets_std_[-1, j])
+            out[c] = {"value": v, "std": sd, "unit": OFFSET_UNITS[c], "significant": bool(abs(v) > OFFSET_SIGNIFICANCE * sd),
+                      "nis": self.nis_[c]}
+        return out
+
     def result(self) -> EstimationResult:
-        return EstimationResult("ukf", self.t_, self.stiffness_, self.x_hat_,
-                                {"filter": "extended Kalman filter (joint states and stiffness scales)",
-                                 "stiffness_std_final": [float(s) for s in self.stiffness_std_[-1]]},
-                                nominal=self.model.theta0)
+        info: dict[str, Any] = {"filter": "extended Kalman filter (joint states and stiffness scales"
+                                          + (", sensor offsets)" if self.offsets else ")"),
+                                "stiffness_std_final": [float(s) for s in self.stiffness_std_[-1]]}
+        if self.offsets:
+            info["offsets"] = self.offset_table()
+            info["offset_filter_nis"] = dict(self.nis_)
+        return EstimationResult("ukf", self.t_, self.stiffness_, self.x_hat_, info, nominal=self.model.theta0)
+
+
+#: Mean normalised innovation squared of a channel up to which the filter's model explains it (1 for a
+#: consistent filter; the filter's noise model is the sensors' white noise, so coloured noise and small model
+#: errors raise it somewhat: see :meth:`JointEKF.offset_table`).
+NIS_EXPLAINED = 3.0
+
+#: Units of the offsets of :data:`OFFSET_CHANNELS`.
+OFFSET_UNITS = {"delta": "rad", "yaw_rate": "rad/s", "roll_rate": "rad/s", "ay": "m/s^2"}
+
+
+def offset_channels(offsets: Sequence[str] | str) -> tuple[str, ...]:
+    """``offsets`` checked: channels of :data:`OFFSET_CHANNELS`, each once (``"all"``: every one of them)."""
+    if isinstance(offsets, str):
+        offsets = OFFSET_CHANNELS if offsets == "all" else (offsets,)
+    out = tuple(offsets)
+    bad = [c for c in out if c not in OFFSET_CHANNELS]
+    if bad or len(set(out)) != len(out):
+        raise IdentificationError(f"offsets must be distinct channels of {', '.join(OFFSET_CHANNELS)} (or 'all'), "
+                                  f"got {list(out)!r}")
+    return out
+
+
+def remove_offsets(log, table: dict[str, dict[str, Any]]):
+    """``log`` with each offset of ``table`` (:meth:`JointEKF.offset_table`) marked ``removed`` subtracted from
+    its channel (a new :class:`ptw_env.logs.RideLog`; ``log`` itself when none is)."""
+    from ptw_env.logs import RideLog
+
+    drop = {c: e["value"] for c, e in table.items() if e.get("removed")}
+    if not drop:
+        return log
+    cols = {k: (v - drop[k] if k in drop else v) for k, v in log.columns.items()}
+    return RideLog(t=log.t, columns=cols, meta=log.meta, path=log.path, ignored_columns=log.ignored_columns,
+                   lines=log.lines)
 
 
 # --------------------------------------------------------------------------- one entry point
@@ -635,8 +744,15 @@ def _same_model(a: LPVModel, b: LPVModel) -> bool:
 
 def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer: AdaptiveObserver | None = None,
              x_hat: np.ndarray | None = None, ls_options: LSOptions | None = None,
-             model: LPVModel | None = None) -> EstimationResult:
+             model: LPVModel | None = None, offsets: Sequence[str] | str = ()) -> EstimationResult:
     """Run ``method`` (:data:`METHODS`, or ``"ekf"``) on a :class:`ptw_env.logs.RideLog`.
+
+    ``offsets``: channels (:data:`OFFSET_CHANNELS`, or ``"all"``) whose constant sensor offsets are estimated as
+    nuisance parameters (module docstring): by the joint EKF itself for ``ukf``; for the other methods by the
+    joint EKF first, the significant ones (:data:`OFFSET_SIGNIFICANCE`) removed from the log before the method
+    runs when that filter explains the log (:attr:`JointEKF.explains`). The result's ``info["offsets"]`` gives
+    each with its standard deviation, its channel's normalised innovations and whether it was removed;
+    ``info["offset_filter_nis"]`` every channel's (:attr:`JointEKF.nis_`).
 
     ``model`` is the vehicle's LPV model (:func:`assist.estimation.lpv_model.build_lpv_model`; default the
     observer's, else the reference scooter's); ``observer`` must be designed on it. ``direct`` and
@@ -655,6 +771,20 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
 
     def default_observer() -> AdaptiveObserver:
         return AdaptiveObserver(default_design(model=model)) if observer is None else observer
+
+    chans = offset_channels(offsets)
+    if chans and meth == "ukf":
+        return JointEKF(sensors=sensors, model=model, offsets=chans).fit(log).result()
+    if chans:  # the observer's known bank in the filter's plant too, lest the offsets take it up
+        bank = observer.road_bank if observer is not None else 0.0
+        ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log)
+        # an offset is removed only where the data determine it and the model with the offsets explains the
+        # log: otherwise the "offsets" are what a model error leaves in the channels, and removing them is a guess
+        table = {c: {**e, "removed": bool(e["significant"] and ekf.explains)} for c, e in ekf.offset_table().items()}
+        nis = dict(ekf.nis_)
+        res = estimate(remove_offsets(log, table), method, sensors=sensors, observer=observer, x_hat=x_hat,
+                       ls_options=ls_options, model=model)
+        return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": nis})
 
     if meth == "adaptive":
         obs = default_observer()
