@@ -19,7 +19,7 @@ log, so that it means something on a loaded or a different machine:
 
 Usage::
 
-    python scripts/bench_diagnose.py                 # the median set below (8 logs of 90 s)
+    python scripts/bench_diagnose.py                 # the median set below (8 logs of 90 s) and the extension log
     python scripts/bench_diagnose.py --log ride.csv  # any log
     python scripts/bench_diagnose.py --repeat 3
     python scripts/bench_diagnose.py --pairs all     # every pair of causes (default: forward selection)
@@ -33,8 +33,9 @@ damping, urban with a 0.01 rad/s yaw-gyro bias, slalom with tire saturation at m
 Besides the median set, one 90 s log that the table of effects cannot explain, so that the diagnosis
 also runs its extension search (closure terms): the urban ride, seed 108, with a yaw-rate gyro reading
 1.2x (a scale error, not in effects.md: the measured yaw rate plus 0.2 times the log's true yaw rate
-``x_r``). It is timed like the others but kept out of the median (issue 19: "the extension search must
-not make it slower than that").
+``x_r``). It is timed like the others; the median is printed over the median set and over all nine logs,
+the extension log included (issue 19: "the extension search must not make it slower than that": the median
+with a log that needs the search must stay under 5 s), and its own time on its own line.
 
 The first diagnosis of a fresh interpreter also pays numba's cache load; the
 script warms it up on a short ride first (not timed).
@@ -192,11 +193,15 @@ def main(argv: list[str] | None = None) -> int:
     import statistics
 
     med = statistics.median(times[:n_median])
+    med_all = statistics.median(times)
     if len(times) > n_median:
-        print(f"* not in the median: a log the table cannot explain, diagnosed with the extension search: "
-              f"{times[-1]:.1f} s")
-    print(f"median {med:.1f} s over {n_median} logs; slowest of all {len(times)} {worst:.1f} s "
-          f"(targets: median < 5 s, issue 19: {'met' if med < 5.0 else 'NOT met'}; every log < 60 s, issue 7: "
+        print(f"* a log the table cannot explain, diagnosed with the extension search: {times[-1]:.1f} s")
+        print(f"median {med:.1f} s over the median set's {n_median} logs; {med_all:.1f} s over all {len(times)}, "
+              f"the extension log included")
+    else:
+        print(f"median {med:.1f} s over {n_median} logs")
+    print(f"slowest of all {len(times)}: {worst:.1f} s (targets: median < 5 s, issue 19: "
+          f"{'met' if max(med, med_all) < 5.0 else 'NOT met'}; every log < 60 s, issue 7: "
           f"{'met' if worst < 60.0 else 'NOT met'}; {os.cpu_count()} CPUs visible; other processes share them)")
     if ratios:
         print(f"with the default BLAS threads: median {statistics.median(ratios):.2f}x the time over {len(ratios)} "
