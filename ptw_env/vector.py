@@ -223,10 +223,11 @@ class PTWRollVectorEnv(VectorEnv):
         self._mass = np.full(K, float(tpl.plant.mass))
         self._fz = np.repeat(tpl.plant.fz[None], K, axis=0)
         self._pidx = np.arange(n) if per_env else np.zeros(n, dtype=np.int64)
-        # the next episode's plants (take_next); without per-env plants, copies of the shared one stand in
-        # (never copied)
-        self._nW, self._ns, self._nf = self._W.copy(), self._inv_sigma.copy(), self._fmax.copy()
-        self._nb, self._nmass, self._nfz = self._bank.copy(), self._mass.copy(), self._fz.copy()
+        # the next episode's plants (take_next); without per-env plants, empty arrays of the same kinds stand
+        # in (never read)
+        rows = slice(None) if per_env else slice(0, 0)
+        self._nW, self._ns, self._nf = self._W[rows].copy(), self._inv_sigma[rows].copy(), self._fmax[rows].copy()
+        self._nb, self._nmass, self._nfz = self._bank[rows].copy(), self._mass[rows].copy(), self._fz[rows].copy()
         sm = tpl.sensor_model
         self._n_delay, self._frac, self._q, self._q_first, self._gps_step = (
             sm.n_delay, sm.frac_delay, sm.quantum, sm.quantise_first, sm.gps_step)
@@ -272,8 +273,8 @@ class PTWRollVectorEnv(VectorEnv):
         self._per_env_plant = per_env
         self._sensor_keys = self.randomization is not None and any(
             k.startswith("sensor") or k.partition(":")[0] in ("gyro_bias", "ay_frame") for k in self.randomization.keys)
-        # the next episode's sensor terms (take_next); one row stands in when no key changes them (never copied)
-        rows = slice(None) if self._sensor_keys else slice(0, 1)
+        # the next episode's sensor terms (take_next); empty arrays stand in when no key changes them (never read)
+        rows = slice(None) if self._sensor_keys else slice(0, 0)
         self._noff, self._nstd, self._ngain = self._offset[rows].copy(), self._std[rows].copy(), self._gain[rows].copy()
         self._batch = min(n, COMPILE_BATCH)
         self._pose = np.zeros(3)

@@ -173,7 +173,7 @@ def main() -> None:
     steps, repeats = (50, 1) if args.quick else (EPISODE_STEPS, 2)
 
     full = not args.randomization_only
-    res: dict = {"native": {}, "memory_bytes_per_env": {}, "steps_timed": steps}
+    res: dict = {"native": {}, "memory_bytes_per_env": {}, "steps_timed": steps, "randomization_only": not full}
     for n in (1, 16, 256, 1024, 4096) if full else ():
         envs = gym.make_vec("PTWRoll-v0", num_envs=n, vectorization_mode="vector_entry_point")
         res["native"][n] = rate(envs, steps, repeats)[0]

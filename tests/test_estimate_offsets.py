@@ -75,9 +75,26 @@ def test_estimate_removes_the_offsets_and_recovers_the_clean_estimate(clean, off
     bare = estimate(offset_log, "adaptive")
     assert "offsets" not in bare.info
     assert np.max(np.abs(bare.final_third_mean() / ref.final_third_mean() - 1.0)) > 0.3
-    # the joint EKF carries them itself
+    # the joint EKF carries them itself (nothing is removed from the log: they are estimated jointly)
     ukf = estimate(offset_log, "ukf", offsets=("delta", "ay"))
-    assert set(ukf.info["offsets"]) == {"delta", "ay"}
+    assert set(ukf.info["offsets"]) == {"delta", "ay"} and not any(e["removed"] for e in ukf.info["offsets"].values())
+    # a state estimate made on the log before its offsets were removed is refused, not mixed with the corrected log
+    with pytest.raises(IdentificationError, match="x_hat"):
+        estimate(offset_log, "direct", offsets="all", x_hat=bare.x_hat)
+
+
+def test_a_channel_never_read_keeps_its_prior_and_json_stays_finite(clean):
+    """The accelerometer dropped out for the whole ride: its offset stays at the prior (zero, not significant),
+    its innovation statistic is None, and the table is valid JSON without NaN."""
+    cols = dict(clean.columns)
+    cols["ay"] = np.full(len(clean), np.nan)
+    from ptw_env.logs import RideLog
+
+    log = RideLog(t=clean.t, columns=cols, meta=clean.meta)
+    ekf = JointEKF(offsets="all").fit(log)
+    table = ekf.offset_table()
+    assert table["ay"]["value"] == 0.0 and not table["ay"]["significant"] and table["ay"]["nis"] is None
+    json.dumps(table, allow_nan=False)
 
 
 def test_offset_channels_are_checked():
@@ -105,7 +122,9 @@ def test_on_a_real_ride_the_offsets_a_model_error_leaves_are_reported_not_remove
     assert any(e["significant"] for e in offs.values()) and not any(e["removed"] for e in offs.values())
     assert offs["yaw_rate"]["nis"] > NIS_EXPLAINED
     note = [n for n in ja["notes"] if n.startswith("sensor offset")]
-    assert len(note) == 1 and "not removed" in note[0] and "yaw_rate" in note[0]
+    assert len(note) == 1 and "not removed" in note[0]
+    unexplained = note[0].split("mean normalised innovation", 1)[1]  # the channels the model leaves unexplained
+    assert "yaw_rate" in unexplained and "delta_rate" in unexplained, note[0]
     assert ja["stiffness"] == jb["stiffness"]
 
 

@@ -23,19 +23,16 @@ METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
 
 
 def _offsets_option(text: str) -> tuple[str, ...]:
-    """``--offsets``: ``all``, ``none`` or a comma-separated list of channels of ``OFFSET_CHANNELS``."""
-    from assist.estimation.identification import OFFSET_CHANNELS
+    """``--offsets``: ``all``, ``none`` or a comma-separated list of channels
+    (:func:`assist.estimation.identification.offset_channels` checks them)."""
+    from assist.estimation.identification import IdentificationError, offset_channels
 
-    if text == "all":
-        return OFFSET_CHANNELS
     if text == "none":
         return ()
-    chans = tuple(c.strip() for c in text.split(","))
-    bad = [c for c in chans if c not in OFFSET_CHANNELS]
-    if bad or len(set(chans)) != len(chans):
-        raise argparse.ArgumentTypeError(f"expected all, none or distinct channels of {','.join(OFFSET_CHANNELS)}, "
-                                         f"got {text!r}")
-    return chans
+    try:
+        return offset_channels("all" if text == "all" else tuple(c.strip() for c in text.split(",")))
+    except IdentificationError as exc:
+        raise argparse.ArgumentTypeError(f"expected all, none or a list; {exc}") from None
 
 
 def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None], method: str) -> list[str]:
@@ -57,9 +54,11 @@ def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None
                 "or a model error it stands in for: 'ptw-assist diagnose' tells them apart)"]
     removed = [(c, e) for c, e in sig if e.get("removed")]
     if removed:
+        bank = "--road-bank" if method == "adaptive" else "--method adaptive --road-bank"
         return [f"sensor offset(s) {beyond} removed from the log before the estimate: {fmt(removed)} (the filter "
-                f"with them explains every channel to within {NIS_EXPLAINED:g} times its noise variance; a road bank "
-                "the model lacks reads much the same at a steady speed: if the road is banked, give --road-bank)"]
+                f"with them explains every channel: mean squared innovation at most {NIS_EXPLAINED:g} times its "
+                f"predicted variance; a road bank the model lacks reads much the same at a steady speed: if the road "
+                f"is banked, give {bank})"]
     worst = sorted(((v, c) for c, v in nis.items() if v is not None), reverse=True)[:2]
     return [f"sensor offset(s) {beyond} found but not removed: {fmt(sig)}; the model does not explain the log even "
             "with them (mean normalised innovation " + ", ".join(f"{c} {v:.1f}" for v, c in worst)
@@ -134,9 +133,10 @@ def _build(p: argparse.ArgumentParser):
                    help="paper's law: adaptation time constant [s] (default 10)")
     p.add_argument("--offsets", type=_offsets_option, default="all", metavar="CHANNELS",
                    help="sensor offsets estimated as nuisance parameters (joint EKF with the states and stiffness; "
-                        "for the other methods run first, each offset beyond 3 of its standard deviations removed "
-                        "from the log before the method runs): all (default: delta, yaw_rate, roll_rate, ay), none, "
-                        "or a comma-separated list of those channels")
+                        "for the other methods run first: each offset beyond 3 of its standard deviations is removed "
+                        "from the log before the method runs, if the filter with the offsets explains every channel, "
+                        "mean normalised innovation at most 3; else they are reported, not removed): all (default: "
+                        "delta, yaw_rate, roll_rate, ay), none, or a comma-separated list of those channels")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
@@ -191,6 +191,9 @@ def _build(p: argparse.ArgumentParser):
             out["sensor_offsets"] = offsets
             out["offset_filter_nis"] = res.info["offset_filter_nis"]
             trimmed = trimmed + offset_notes(offsets, res.info["offset_filter_nis"], method)
+        if "offsets_error" in res.info:
+            trimmed = trimmed + [f"sensor offsets not estimated ({res.info['offsets_error']}): the estimate runs on "
+                                 "the log as it is"]
         out["log"] = str(a.log)
         out["vehicle"] = vehicle.identity()
         out["observer_speed_range"] = [model.vmin, model.vmax]

@@ -139,7 +139,8 @@ from ptw_env.vehicle import DELTA, DELTA_DOT, FYF, FYR, PHI_DOT, R, VY, Vehicle
 
 from assist.estimation.adaptive_design import DEFAULT_PROCESS_STD, default_design
 from assist.estimation.adaptive_observer import DEFAULT_BAND, AdaptiveObserver
-from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, THETA_NAMES, LPVModel, build_lpv_model, chi_entry
+from assist.estimation.lpv_model import (OUTPUT_NAMES, OUTPUT_UNITS, STATE_SCALE, THETA_NAMES, LPVModel, build_lpv_model,
+                                         chi_entry)
 
 #: Methods of :func:`estimate` (cli.md ``--method``; ``ekf`` is an alias of ``ukf``).
 METHODS = ("adaptive", "direct", "inversion", "ukf")
@@ -621,7 +622,7 @@ class JointEKF:
         self.process_std, self.stiffness_walk, self.stiffness_std0 = q, float(stiffness_walk), float(stiffness_std0)
         self.band = (lo, hi)
         self.offsets = offset_channels(offsets)
-        if not (isinstance(road_bank, (int, float)) and math.isfinite(road_bank)):
+        if isinstance(road_bank, bool) or not (isinstance(road_bank, (int, float)) and math.isfinite(road_bank)):
             raise IdentificationError(f"road_bank must be a finite number of rad, got {road_bank!r}")
         self.road_bank = float(road_bank)
 
@@ -707,8 +708,8 @@ class JointEKF:
 #: errors raise it somewhat: see :meth:`JointEKF.offset_table`).
 NIS_EXPLAINED = 3.0
 
-#: Units of the offsets of :data:`OFFSET_CHANNELS`.
-OFFSET_UNITS = {"delta": "rad", "yaw_rate": "rad/s", "roll_rate": "rad/s", "ay": "m/s^2"}
+#: Units of the offsets of :data:`OFFSET_CHANNELS` (their channels' units).
+OFFSET_UNITS = {c: u for c, u in zip(OUTPUT_NAMES, OUTPUT_UNITS) if c in OFFSET_CHANNELS}
 
 
 def offset_channels(offsets: Sequence[str] | str) -> tuple[str, ...]:
@@ -751,8 +752,11 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
     nuisance parameters (module docstring): by the joint EKF itself for ``ukf``; for the other methods by the
     joint EKF first, the significant ones (:data:`OFFSET_SIGNIFICANCE`) removed from the log before the method
     runs when that filter explains the log (:attr:`JointEKF.explains`). The result's ``info["offsets"]`` gives
-    each with its standard deviation, its channel's normalised innovations and whether it was removed;
-    ``info["offset_filter_nis"]`` every channel's (:attr:`JointEKF.nis_`).
+    each with its standard deviation, its channel's normalised innovations and whether it was removed
+    (``ukf``: never, they are estimated jointly); ``info["offset_filter_nis"]`` every channel's
+    (:attr:`JointEKF.nis_`). A known bank (``observer.road_bank``) goes into the filter's plant. If that filter
+    diverges, the method runs on the log as it is and ``info["offsets_error"]`` says why. A given ``x_hat``
+    (estimated on the log before its offsets were removed) with an offset to remove is an error.
 
     ``model`` is the vehicle's LPV model (:func:`assist.estimation.lpv_model.build_lpv_model`; default the
     observer's, else the reference scooter's); ``observer`` must be designed on it. ``direct`` and
@@ -773,18 +777,28 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
         return AdaptiveObserver(default_design(model=model)) if observer is None else observer
 
     chans = offset_channels(offsets)
+    bank = observer.road_bank if observer is not None else 0.0  # a known bank in the filter's plant too
     if chans and meth == "ukf":
-        return JointEKF(sensors=sensors, model=model, offsets=chans).fit(log).result()
-    if chans:  # the observer's known bank in the filter's plant too, lest the offsets take it up
-        bank = observer.road_bank if observer is not None else 0.0
-        ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log)
+        res = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log).result()
+        table = {c: {**e, "removed": False} for c, e in res.info["offsets"].items()}  # estimated jointly
+        return dataclasses.replace(res, info={**res.info, "offsets": table})
+    if chans:
+        try:
+            ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log)
+        except IdentificationError as exc:  # no offsets, but the method still runs on the log as it is
+            res = estimate(log, method, sensors=sensors, observer=observer, x_hat=x_hat, ls_options=ls_options,
+                           model=model)
+            return dataclasses.replace(res, info={**res.info, "offsets_error": str(exc)})
         # an offset is removed only where the data determine it and the model with the offsets explains the
         # log: otherwise the "offsets" are what a model error leaves in the channels, and removing them is a guess
         table = {c: {**e, "removed": bool(e["significant"] and ekf.explains)} for c, e in ekf.offset_table().items()}
-        nis = dict(ekf.nis_)
+        if x_hat is not None and any(e["removed"] for e in table.values()):
+            raise IdentificationError("x_hat was estimated on the log before its sensor offsets were removed: "
+                                      "pass offsets=() with it, or leave x_hat out (the observer then runs on the "
+                                      "corrected log)")
         res = estimate(remove_offsets(log, table), method, sensors=sensors, observer=observer, x_hat=x_hat,
                        ls_options=ls_options, model=model)
-        return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": nis})
+        return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": dict(ekf.nis_)})
 
     if meth == "adaptive":
         obs = default_observer()
