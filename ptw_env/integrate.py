@@ -24,7 +24,7 @@ from threadpoolctl import threadpool_limits
 
 from . import kernels
 from .dynamics import Plant, compile_plant, linearise
-from .vehicle import Vehicle, speed_array
+from .vehicle import RATE_GRID, Vehicle, speed_array
 
 #: Largest internal RK4 step [s].
 DEFAULT_SUBSTEP = 0.0025
@@ -67,7 +67,8 @@ class SimulationInputError(ValueError):
 def speed_grid(vehicle: Vehicle, speeds) -> np.ndarray:
     """Speeds [m/s] at which a ride's fastest mode is sought: from the lowest to the highest of the speeds it
     meets (e.g. its speed profile) at the spacing of :attr:`ptw_env.vehicle.Vehicle.fastest_eigenvalue`
-    (a 40th of the vehicle's range; both ends included; one speed for a ride at constant speed). Sizing a
+    (``RATE_GRID - 1`` intervals over the vehicle's range; both ends included; one speed for a ride at constant
+    speed). Sizing a
     ride's step at its own speeds keeps ``|lambda h|`` of every mode it meets within :data:`MAX_LAMBDA_H`
     without paying, at 50 km/h, for a tire lag (``~vx / sigma``) met only at the top of the range."""
     try:
@@ -76,7 +77,7 @@ def speed_grid(vehicle: Vehicle, speeds) -> np.ndarray:
         raise SimulationInputError(str(exc)) from None
     lo, hi = float(v.min()), float(v.max())
     span = max(vehicle.vmax - vehicle.vmin, 1e-9)
-    n = 1 if hi - lo <= 1e-9 else 1 + max(1, math.ceil(40 * (hi - lo) / span - 1e-9))
+    n = 1 if hi - lo <= 1e-9 else 1 + max(1, math.ceil((RATE_GRID - 1) * (hi - lo) / span - 1e-9))
     return np.linspace(lo, hi, n)
 
 

@@ -129,6 +129,11 @@ def speed_array(speeds) -> np.ndarray:
     return v
 
 
+#: Speeds over a vehicle's range (ends included) at which its fastest mode is sought (:attr:`Vehicle.fastest_eigenvalue`);
+#: a ride's own speeds are searched at the same spacing (:func:`ptw_env.integrate.speed_grid`).
+RATE_GRID = 41
+
+
 @dataclass(frozen=True, eq=False)
 class Vehicle:
     """Linear part of a Sharp-type PTW lateral model, ``E x' = (A0 + vx A1) x + B tau``.
@@ -227,17 +232,27 @@ class Vehicle:
 
     @functools.cached_property
     def fastest_eigenvalue(self) -> float:
-        """``max |eig(E^-1 A(vx))|`` [1/s] over the speed range (41 speeds, ends included): the
+        """``max |eig(E^-1 A(vx))|`` [1/s] over the speed range (:data:`RATE_GRID` speeds, ends included): the
         stiffest mode of the linearised vehicle, which sets the integration step
         (:func:`ptw_env.integrate.substeps_for`). Reference scooter: 186 at 40 m/s (the front tire lag,
         ~vx/sigma); robot bicycle: ~100 at every speed (its lateral-tire oscillation)."""
-        return self.fastest_rate(np.linspace(self.vmin, self.vmax, 41))
+        return self.fastest_rate(self.rate_speeds())
+
+    def rate_speeds(self) -> np.ndarray:
+        """The :data:`RATE_GRID` speeds [m/s] from ``vmin`` to ``vmax`` at which the fastest mode over the
+        range is sought (:attr:`fastest_eigenvalue`; the diagnosis's replay sizes its step on the same grid)."""
+        return np.linspace(self.vmin, self.vmax, RATE_GRID)
+
+    def mode_rates(self, speeds) -> np.ndarray:
+        """``max |eig(E^-1 A(vx))|`` [1/s] at each of the given speeds [m/s]: the stiffest mode of the
+        linearised vehicle there (the one definition; :meth:`fastest_rate` is its maximum)."""
+        return np.array([np.abs(np.linalg.eigvals(self.state_matrix(float(x)))).max() for x in speed_array(speeds)])
 
     def fastest_rate(self, speeds) -> float:
         """``max |eig(E^-1 A(vx))|`` [1/s] over the given speeds [m/s]: the stiffest mode met at those
         speeds (:attr:`fastest_eigenvalue` is this over the whole range; an environment sizes its step
         for the speeds its rides reach, :func:`ptw_env.integrate.speed_grid`)."""
-        return float(max(np.abs(np.linalg.eigvals(self.state_matrix(float(x)))).max() for x in speed_array(speeds)))
+        return float(self.mode_rates(speeds).max())
 
     @property
     def steer_torque_scale(self) -> float:

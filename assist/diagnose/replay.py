@@ -122,8 +122,6 @@ STATE_STEP = np.array([1e-3, 1e-3, 1e-2, 1e-3, 1e-3, 1e-3, 5.0, 5.0, 0.01, 0.01]
 #: Typical size of each correction (same units): the scale of the damping and of the prior (forces:
 #: :data:`FORCE_SCALE` of the weight).
 STATE_SCALE = np.array([0.02, 0.005, 0.1, 0.02, 0.02, 0.05, 200.0, 200.0, 0.05, 0.05])
-#: Speeds per vehicle speed range on which the spectral radius is tabulated (substeps).
-_RHO_GRID = 41
 #: Damping of the initial-state fit (Levenberg-Marquardt / Tikhonov): a correction of one typical
 #: size (:data:`STATE_SCALE`) in a direction that changes the weighted residual norm by much less
 #: than this is not made (an initial state the scored outputs cannot see).
@@ -197,9 +195,8 @@ class Replay:
         self.params = param_set(self.vehicle)  # the vehicle's hypotheses: nominal, bounds, grids
         self.state_step, self.state_scale = self.scales(self.vehicle)
         v = self.vehicle
-        self._rho_v = np.linspace(v.vmin, v.vmax, _RHO_GRID)
-        rho = np.array([np.abs(np.linalg.eigvals(v.state_matrix(float(x)))).max() for x in self._rho_v])
-        self._rho = np.maximum.accumulate(rho)  # fastest eigenvalue up to each speed
+        self._rho_v = v.rate_speeds()
+        self._rho = np.maximum.accumulate(v.mode_rates(self._rho_v))  # fastest eigenvalue up to each speed
         self._sigma0 = self.params.vehicle_scales.sigma
         self._damping0 = max(self.params.vehicle_scales.steer_damping, 0.0)
         self.sim_seconds = 0.0
