@@ -164,6 +164,12 @@ class PTWRollVectorEnv(VectorEnv):
     **kwargs
         Every argument of :class:`ptw_env.env.PTWRollEnv` (scenario, vehicle, sensors, noise_pct, effects,
         actuator, cost, randomize, ...), with the same meaning and checks.
+
+    Attributes
+    ----------
+    nsub : ndarray of int, shape (2 x rides,)
+        RK4 substeps per control period of each ride of the pool and its mirror image (row ``2 j`` is ride ``j``,
+        ``2 j + 1`` its mirror; :attr:`ptw_env.env.PTWRollEnv.ride_substeps`): an env steps with its ride's count.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25, "autoreset_mode": AutoresetMode.NEXT_STEP}
