@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
                     best[kind] = (dt, rep)
         dt, rep = best["one"]
         ref = min(ref, nominal_replay_seconds(src))
-        worst = max(worst, dt)  # every log, the one outside the median too (issue 7: every log < 60 s)
+        worst = max(worst, dt)  # every log, the extension log too (issue 7: every log < 60 s)
         times.append(dt)
         duration = _as_log(src).duration_s
         def described(r) -> str:  # the verdict and the closure terms of an extension
