@@ -137,3 +137,19 @@ def test_bad_offsets_option_is_one_error(tmp_path, capsys):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "--offsets" in err and "vx" in err and "Traceback" not in err and not out.exists()
+
+
+def test_a_diverging_offset_filter_leaves_the_estimate_to_run_on_the_log_as_it_is(clean, monkeypatch):
+    """The offsets' filter is a helper of the other methods: if it diverges, the method still runs (on the log
+    unchanged) and says why; a bad argument to it is still an error."""
+    import assist.estimation.identification as ident
+
+    def diverge(self, log):
+        raise IdentificationError("the EKF diverged at t = 1.00 s (sample 100)")
+
+    monkeypatch.setattr(ident.JointEKF, "fit", diverge)
+    got = estimate(clean, "adaptive", offsets="all")
+    assert "offsets" not in got.info and "diverged" in got.info["offsets_error"]
+    np.testing.assert_array_equal(got.stiffness, estimate(clean, "adaptive").stiffness)
+    with pytest.raises(IdentificationError, match="road_bank"):
+        JointEKF(offsets="all", road_bank=True)

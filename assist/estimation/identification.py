@@ -778,14 +778,17 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
 
     chans = offset_channels(offsets)
     bank = observer.road_bank if observer is not None else 0.0  # a known bank in the filter's plant too
-    if chans and meth == "ukf":
+    if meth == "ukf":
         res = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log).result()
+        if not chans:
+            return res
         table = {c: {**e, "removed": False} for c, e in res.info["offsets"].items()}  # estimated jointly
         return dataclasses.replace(res, info={**res.info, "offsets": table})
     if chans:
+        ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank)  # bad arguments: an error
         try:
-            ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log)
-        except IdentificationError as exc:  # no offsets, but the method still runs on the log as it is
+            ekf.fit(log)
+        except IdentificationError as exc:  # the filter diverged: no offsets, the method runs on the log as it is
             res = estimate(log, method, sensors=sensors, observer=observer, x_hat=x_hat, ls_options=ls_options,
                            model=model)
             return dataclasses.replace(res, info={**res.info, "offsets_error": str(exc)})
@@ -808,8 +811,6 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
         info = {"law": obs.law, "equality_residual_rel": obs.design.residual_rel,
                 "stiffness_std_final": [float(v) for v in obs.stiffness_std]}
         return EstimationResult("adaptive", run.t, run.stiffness, run.x_hat, info, nominal=model.theta0)
-    if meth == "ukf":
-        return JointEKF(sensors=sensors, model=model).fit(log).result()
     if x_hat is None:
         x_hat = default_observer().run_log(log).x_hat
     est = DirectLS(ls_options, model=model) if meth == "direct" else InversionLS(ls_options, model=model)
