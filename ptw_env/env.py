@@ -327,7 +327,7 @@ class PTWRollEnv(gym.Env):
         step_speeds: str = "ride",
     ) -> None:
         super().__init__()
-        if step_speeds not in ("ride", "vehicle"):
+        if not isinstance(step_speeds, str) or step_speeds not in ("ride", "vehicle"):
             raise EnvConfigError(f"step_speeds must be 'ride' or 'vehicle', got {step_speeds!r}")
         self.step_speeds = step_speeds
         for name, v in (("dt", dt), ("tau_max", 1.0 if tau_max is None else tau_max),

@@ -44,8 +44,8 @@ def one_blas_thread(fn: _F) -> _F:
     they keep spinning for a while, waiting for the next one, and take the cores from the kernel that
     follows. Measured on 2 cores (``scripts/bench_diagnose.py``, nine 90 s logs: its median set and a log that
     needs the extension search; the two run in turn on the
-    same log, the same verdicts and vehicle-steps): ``ptw-assist diagnose`` takes 1.31-1.78x as long with
-    OpenBLAS's default threads (median 1.43x, nine logs; with one, 63-75 % of its time is in the kernel). The matrices of
+    same log, the same verdicts and vehicle-steps): ``ptw-assist diagnose`` takes longer with OpenBLAS's default
+    threads (the ratio per log is the benchmark's column "BLAS x"; its stored output is in the README). The matrices of
     such work are small (10 x 10 normal equations, least-squares Jacobians of a few columns): what a second
     BLAS thread gains there is less than what its spinning costs the kernel.
     Entered at each call, so that a BLAS library loaded after import is limited too. The limit is the
@@ -76,6 +76,9 @@ def speed_grid(vehicle: Vehicle, speeds) -> np.ndarray:
     except ValueError as exc:
         raise SimulationInputError(str(exc)) from None
     lo, hi = float(v.min()), float(v.max())
+    if lo < vehicle.vmin or hi > vehicle.vmax:  # as simulate(): the model holds on the vehicle's range only
+        raise SimulationInputError(f"speeds {lo:g}-{hi:g} m/s leave the vehicle {vehicle.name!r}'s valid range "
+                                   f"[{vehicle.vmin:g}, {vehicle.vmax:g}] m/s")
     span = max(vehicle.vmax - vehicle.vmin, 1e-9)
     n = 1 if hi - lo <= 1e-9 else 1 + max(1, math.ceil((RATE_GRID - 1) * (hi - lo) / span - 1e-9))
     return np.linspace(lo, hi, n)

@@ -109,6 +109,8 @@ PHYSICAL_BOUNDS: Mapping[str, tuple[float, float]] = {
 
 #: Fewest samples a log may have (two give a rate; ten make it a signal).
 MIN_SAMPLES = 10
+#: Shortest log [s] that :func:`read_log` accepts by default, and the shortest ridden stretch :func:`ridden_part` keeps.
+MIN_DURATION_S = 1.0
 #: Largest allowed deviation of one time step from the median step, relative [-].
 SAMPLING_TOLERANCE = 0.01
 
@@ -516,7 +518,7 @@ def _cell_error(path: Path, line: int, name: str, cell: str) -> LogFormatError |
     return None
 
 
-def read_log(path: str | os.PathLike, min_duration_s: float = 1.0) -> RideLog:
+def read_log(path: str | os.PathLike, min_duration_s: float = MIN_DURATION_S) -> RideLog:
     """Read a ride log (logs.md) and its sidecar, or say exactly what is wrong.
 
     Parameters
@@ -676,7 +678,7 @@ def held_speed(t: np.ndarray, vx: np.ndarray) -> np.ndarray:
     return np.interp(np.asarray(t, dtype=float), tf, vf)
 
 
-def ridden_part(log: RideLog, min_duration_s: float = 1.0) -> tuple[RideLog, list[str]]:
+def ridden_part(log: RideLog) -> tuple[RideLog, list[str]]:
     """The longest stretch of ``log`` a sequential estimator can run through, and notes saying what was left out
     and why (the estimators and the risk warning: ``ptw-assist estimate`` and ``risk``).
 
@@ -690,11 +692,9 @@ def ridden_part(log: RideLog, min_duration_s: float = 1.0) -> tuple[RideLog, lis
     Raises
     ------
     LogDataError
-        No usable stretch of at least ``min_duration_s`` [s] (the stretches' lengths named).
+        No usable stretch of at least :data:`MIN_SAMPLES` samples and :data:`MIN_DURATION_S` (the longest named).
     """
-    tau, v = log["tau"], log["vx"]
-    bad_tau = ~np.isfinite(tau)
-    stand = np.isfinite(v) & (v <= 0.0)
+    bad_tau, stand = unusable_samples(log["tau"], log["vx"])
     good = ~(bad_tau | stand)
     if good.all():
         return log, []
@@ -708,12 +708,13 @@ def ridden_part(log: RideLog, min_duration_s: float = 1.0) -> tuple[RideLog, lis
     if bad_tau.any():
         k = int(np.flatnonzero(bad_tau)[0])
         why.append(f"{int(bad_tau.sum())} dropout(s) in tau (the first at {log.where(k)})")
-    if lengths.size == 0 or lengths.max() * log.dt < min_duration_s:
-        longest = f"{lengths.max() * log.dt:.2f} s" if lengths.size else "none"
-        raise LogDataError(f"{log.path or 'log'}: no ridden stretch of at least {min_duration_s:g} s (longest: "
-                           f"{longest}); {'; '.join(why)}", column="vx" if stand.any() else "tau")
-    i = int(np.argmax(lengths))
-    s, e = int(starts[i]), int(ends[i])
+    i = int(np.argmax(lengths)) if lengths.size else -1
+    s, e = (int(starts[i]), int(ends[i])) if lengths.size else (0, 0)
+    short = _length_problem(log.t[s:e], MIN_DURATION_S)  # the rule read_log applies to a whole log
+    if short is not None:
+        raise LogDataError(f"{log.path or 'log'}: no ridden stretch of at least {MIN_DURATION_S:g} s and {MIN_SAMPLES} "
+                           f"samples (longest: {(e - s) * log.dt:.2f} s, {e - s} samples); {'; '.join(why)}",
+                           column="vx" if stand.any() else "tau")
     notes = [f"kept the longest ridden stretch, t = {log.t[s]:.2f}-{log.t[e - 1]:.2f} s ({e - s} of {len(log)} samples, "
              f"from {log.where(s)}): the log has {'; '.join(why)}"]
     others = [j for j in range(lengths.size) if j != i]
@@ -725,6 +726,15 @@ def ridden_part(log: RideLog, min_duration_s: float = 1.0) -> tuple[RideLog, lis
     part = RideLog(t=log.t[s:e], columns={k: c[s:e] for k, c in log.columns.items()}, meta=log.meta, path=log.path,
                    ignored_columns=log.ignored_columns, lines=log.lines[s:e] if len(log.lines) == len(log) else ())
     return part, notes
+
+
+def unusable_samples(tau: np.ndarray, vx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The samples a model replay cannot use, as masks ``(tau_missing, vx_not_positive)``: the rider torque not
+    read (NaN) and a speed read at 0 or below (a missing speed fix is usable: the held speed bridges it). The
+    one rule of :func:`input_series` (which refuses such samples) and :func:`ridden_part` (which cuts them out)."""
+    tau = np.asarray(tau, dtype=float)
+    v = np.asarray(vx, dtype=float)
+    return ~np.isfinite(tau), np.isfinite(v) & (v <= 0.0)
 
 
 def input_series(t: np.ndarray, tau: np.ndarray, vx: np.ndarray, where: str = "") -> tuple[np.ndarray, np.ndarray]:
@@ -748,13 +758,13 @@ def input_series(t: np.ndarray, tau: np.ndarray, vx: np.ndarray, where: str = ""
         k = int(idx[0])
         return f"at sample {k} (t = {t[k]:.3f} s, line {k + 2} of a file with one header line), {idx.size} such sample(s)"
 
-    bad = np.flatnonzero(~np.isfinite(tau))
+    tau_missing, stand = unusable_samples(tau, v)
+    bad = np.flatnonzero(tau_missing)
     if bad.size:
         raise ValueError(f"{where}tau is missing {at(bad)} (the rider torque must be known at every sample)")
-    ok = np.isfinite(v)
-    if not ok.any():
+    if not np.isfinite(v).any():
         raise ValueError(f"{where}vx is missing at every sample")
-    nonpos = np.flatnonzero(ok & (v <= 0))
+    nonpos = np.flatnonzero(stand)
     if nonpos.size:
         raise ValueError(f"{where}vx must be positive (m/s) where present; vx = {v[int(nonpos[0])]:g} m/s "
                          f"{at(nonpos)}")

@@ -70,7 +70,8 @@ def take_next(idx, plant, sensors, rtable, nxt, W, nW, s, ns, f, nf, b, nb, mass
     """Rows ``idx`` of the next-episode tables copied into this episode's: the randomised values
     (``rtable <- nxt``), with ``plant`` the compiled plants (``W``, ``inv_sigma``, ``fmax``, ``bank``, ``mass``,
     ``fz``), with ``sensors`` the sensor terms (``offset``, ``std``, ``gain``). One compiled call instead of a
-    numpy fancy-index copy per array (each ~1-2 us of call overhead, most of a randomised reset's cost)."""
+    numpy fancy-index copy per array, whose call overheads were most of a randomised reset's cost (what a reset
+    costs now: ``scripts/bench_vector.py``)."""
     for i in idx:
         rtable[i, :] = nxt[i, :]
         if plant:
@@ -458,9 +459,11 @@ class PTWRollVectorEnv(VectorEnv):
               options: dict | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every env (or those of ``options["reset_mask"]``); ``options["x0"]``: one starting state (8,)."""
         n = self.num_envs
+        if options is not None and not isinstance(options, dict):
+            raise EnvConfigError(f"reset options must be a dict (keys reset_mask, x0), got {options!r}")
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
-        x0 = options.pop("x0", None)
+        x0 = options_x0 = options.pop("x0", None)
         if options:
             raise EnvConfigError(f"unknown reset option(s): {sorted(options)}; known: reset_mask, x0")
         if mask is None:
@@ -468,9 +471,13 @@ class PTWRollVectorEnv(VectorEnv):
         elif not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,) and mask.any()):
             raise EnvConfigError(f"options['reset_mask'] must be a bool array of shape ({n},) with a True value, got {mask!r}")
         if x0 is not None:
-            x0 = np.asarray(x0, dtype=float)
+            try:
+                x0 = np.asarray(x0, dtype=float)
+            except (TypeError, ValueError):
+                x0 = np.full(0, np.nan)  # not numbers: refused below
             if x0.shape != (8,) or not np.all(np.isfinite(x0)):
-                raise EnvConfigError(f"reset option x0 must be 8 finite numbers (the state of model.md), got {x0!r}")
+                raise EnvConfigError(f"reset option x0 must be 8 finite numbers (the state of model.md), got "
+                                     f"{options_x0!r}")
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds: list[int | None] = [int(seed) + i for i in range(n)]
         elif seed is None:
@@ -479,6 +486,10 @@ class PTWRollVectorEnv(VectorEnv):
             seeds = list(seed)
         else:
             raise EnvConfigError(f"seed must be an int, None or a list of {n} seeds, got {seed!r}")
+        bad = [s for s in seeds if s is not None and (isinstance(s, bool) or not isinstance(s, (int, np.integer))
+                                                     or s < 0)]
+        if bad:  # checked before any generator is replaced: a refused reset changes nothing
+            raise EnvConfigError(f"seeds must be integers >= 0 or None, got {bad[0]!r}")
         first = not self._rngs
         if first:  # the first reset creates every env's generator
             self._rngs = [np.random.default_rng(0)] * n

@@ -39,6 +39,8 @@ def output_file(parser: argparse.ArgumentParser, option: str, path: str | os.Pat
     f = Path(path)
     if not f.parent.is_dir():
         parser.error(f"{option}: folder {f.parent} does not exist")
+    if f.is_dir():
+        parser.error(f"{option}: {f} is a folder, not a file")
     if f.exists() and not overwrite:
         parser.error(f"{option}: {f} exists; pass --overwrite to replace it")
     return f

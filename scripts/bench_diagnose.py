@@ -61,6 +61,14 @@ def _as_log(src):
     return read_log(src) if isinstance(src, (str, os.PathLike)) else src
 
 
+def log_vehicle(log):
+    """The vehicle ``diagnose()`` takes for ``log`` (its sidecar's, else the reference scooter)."""
+    from ptw_env.vehicle import REFERENCE_SCOOTER
+    from ptw_env.vehicle_files import vehicle_of_log
+
+    return vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER
+
+
 def nominal_replay_seconds(log, repeat: int = 3) -> float:
     """Best-of-``repeat`` wall time [s] of one batched nominal replay of ``log`` (module docstring):
     every replay window of the diagnosis, initial states fitted by the same Gauss-Newton steps."""
@@ -70,11 +78,8 @@ def nominal_replay_seconds(log, repeat: int = 3) -> float:
     from assist.diagnose.replay import Replay
     from ptw_env.integrate import one_blas_thread
     from ptw_env.sensors import DEFAULT_NOISE_STD
-    from ptw_env.vehicle import REFERENCE_SCOOTER
-    from ptw_env.vehicle_files import vehicle_of_log
-
     log = _as_log(log)
-    v = vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER  # the vehicle diagnose() takes for this log
+    v = log_vehicle(log)
     win, _ = replay_windows(log, v)
     rp = Replay(win, np.array([DEFAULT_NOISE_STD[c] for c in win.channels]), v)
     fit = one_blas_thread(rp.fit_states)
@@ -133,13 +138,16 @@ def main(argv: list[str] | None = None) -> int:
     logs: list[tuple[str, object]] = []
     if a.log:
         from assist.diagnose import DiagnoseInputError
+        from assist.diagnose.diagnosis import replay_windows
         from ptw_env.logs import LogDataError, LogFormatError
 
         logs = []
-        for p in a.log:  # every log read and checked before any timing: one clear line for a bad one
-            try:
-                logs.append((p, _as_log(p)))
-            except (OSError, LogFormatError, LogDataError, DiagnoseInputError) as exc:
+        for p in a.log:  # every log read and checked before any timing (its vehicle and windows as diagnose
+            try:        # takes them): one clear line for a bad one
+                lg = _as_log(p)
+                replay_windows(lg, log_vehicle(lg))
+                logs.append((p, lg))
+            except (OSError, LogFormatError, LogDataError, DiagnoseInputError, ValueError) as exc:
                 ap.error(f"--log {p}: {exc}")
     else:
         logs.append(("nominal_urban.csv (disclosed, 90 s)", shared_data("") / "nominal_urban.csv"))

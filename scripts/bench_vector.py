@@ -237,11 +237,11 @@ def main() -> None:
             res[f"noise_{label}"] = gap
             print(f"  (the fixed model at its own and at the same substeps is one configuration here, measured "
                   f"twice: up to {100 * gap:.1f} % apart, the noise of these figures)")
-        slower = [res[f"randomized_{label}_reset{r}"] / res[f"whole_{label}_reset{r}"] - 1.0 for r in RESETS_PER_STEP]
-        res[f"per_ride_gain_{label}"] = slower
+        gain = [res[f"randomized_{label}_reset{r}"] / res[f"whole_{label}_reset{r}"] - 1.0 for r in RESETS_PER_STEP]
+        res[f"per_ride_gain_{label}"] = gain
         print(f"  the same randomised env with the step sized for the vehicle's whole range (step_speeds='vehicle', "
               f"{res[f'substeps_whole_{label}']} substeps), timed in turn with the others: per-ride sizing is "
-              + " / ".join(f"{100 * x:+.1f} %" for x in slower) + f" faster at {' / '.join(map(str, RESETS_PER_STEP))} "
+              + " / ".join(f"{100 * x:+.1f} %" for x in gain) + f" faster at {' / '.join(map(str, RESETS_PER_STEP))} "
               "resets a step")
         if full:
             ef, er = res[f"fixed_{label}_ends_per_step"], res[f"randomized_{label}_ends_per_step"]

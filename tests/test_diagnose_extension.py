@@ -14,6 +14,7 @@ import pytest
 
 from assist.diagnose import diagnose
 from assist.diagnose.params import CLOSURES
+from ptw_env.kernels import COULOMB_WIDTH
 from outside_effects import ride_outside, yaw_gyro_scale
 from test_diagnose import ride
 from test_diagnose_outside import aero_side_force
@@ -88,14 +89,14 @@ def _check_reported_model(rep, tmp_path) -> None:
     x, vx = np.array([0.05, 0.01, 0.2, 0.1, 0.02, 0.01, 50.0, 40.0]), 12.0
     g = np.zeros(8)
     features = {"1": 1.0, "vx^2": vx**2, "vx*vy": vx * x[2], "delta_dot": x[5], "vx*delta": vx * x[1],
-                "tanh(delta_dot/w)": np.tanh(x[5] / 0.02)}
+                "tanh(delta_dot/w)": np.tanh(x[5] / COULOMB_WIDTH)}
     rows = {"lateral": 2, "yaw": 3, "roll": 4, "steer": 5}
     forces = [t for t in rep.extension["terms"] if not t["equation"].startswith("sensor:")]
     assert forces  # this ride's extension has force closures
     for t in forces:
         g[rows[t["equation"]]] += t["coefficient"] * features[CLOSURES[t["name"]].feature]
     got = rep.extended_model().rhs(x, 0.0, vx) - base_plant.rhs(x, 0.0, vx)
-    np.testing.assert_allclose(got, np.linalg.solve(rep.vehicle.E, g), rtol=2e-3, atol=1e-9)
+    np.testing.assert_allclose(got, np.linalg.solve(rep.vehicle.E, g), rtol=1e-10, atol=1e-9)  # measured 1e-14
     fig = rep.plot(str(tmp_path / "r.png"))
     labels = [t.get_text() for ax in fig.axes for t in (ax.get_legend().get_texts() if ax.get_legend() else [])]
     assert any(all(t["name"] in lab for t in rep.extension["terms"]) for lab in labels), labels

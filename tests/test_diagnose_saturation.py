@@ -186,7 +186,10 @@ def test_the_clean_steady_turns_verdict_says_it_may_be_the_encoder():
     rep = diagnose(ride("constant_radius", None, seed=61), pairs=False, progress=False)
     notes = [n for n in rep.method["notes"] if "quantisation" in n]
     assert rep.causes[0]["cause"] != "none" and len(notes) == 1, (rep.causes, rep.method["notes"])
-    assert "under half the encoder's step (6.14 mrad)" in notes[0] and "note: " + notes[0] in rep.summary()
+    from ptw_env.sensors import ENCODER_QUANTUM
+
+    assert f"under half the encoder's step ({1e3 * ENCODER_QUANTUM:.2f} mrad)" in notes[0]
+    assert "note: " + notes[0] in rep.summary()
 
 
 def _ranked(S, counts):

@@ -271,15 +271,9 @@ def test_one_blas_thread_limits_blas_while_the_function_runs_and_restores_it():
     the kernel), and the caller's settings come back afterwards, also after an error."""
     import numpy as np
     import scipy.linalg  # noqa: F401  (scipy's own OpenBLAS loaded too)
-    from threadpoolctl import threadpool_info, threadpool_limits
+    from threadpoolctl import threadpool_limits
 
-    from assist.diagnose import diagnose, score_model
     from ptw_env.integrate import one_blas_thread
-
-    assert diagnose.__wrapped__ is not diagnose and score_model.__wrapped__ is not score_model  # both carry it
-
-    def blas_threads():
-        return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
 
     with threadpool_limits(limits=2, user_api="blas"):
         before = blas_threads()
@@ -300,16 +294,15 @@ def test_one_blas_thread_limits_blas_while_the_function_runs_and_restores_it():
         assert blas_threads() == before
 
 
-def test_diagnose_reads_the_log_with_one_blas_thread(monkeypatch):
-    """diagnose runs under one_blas_thread: the log is read (its first step) with one BLAS thread per
-    library, and the caller's two are back after the call."""
+def test_diagnose_and_score_model_read_the_log_with_one_blas_thread(monkeypatch):
+    """diagnose and score_model run under one_blas_thread: the log is read (their first step after the
+    argument checks) with one BLAS thread per library, and the caller's two are back after the call."""
+    import types
+
     import scipy.linalg  # noqa: F401
-    from threadpoolctl import threadpool_info, threadpool_limits
+    from threadpoolctl import threadpool_limits
 
     import assist.diagnose.diagnosis as dg
-
-    def blas_threads():
-        return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
 
     seen = []
 
@@ -317,13 +310,25 @@ def test_diagnose_reads_the_log_with_one_blas_thread(monkeypatch):
         seen.append(blas_threads())
         raise RuntimeError(f"read {path}")
 
-    monkeypatch.setattr(dg, "read_log", reading)
+    monkeypatch.setattr(dg, "read_log", reading)  # diagnose's first step
+    monkeypatch.setattr(dg, "_load", reading)  # score_model's, after its checks of the report (stubbed below)
+    monkeypatch.setattr(dg, "DiagnosisReport", types.SimpleNamespace)
+    report = types.SimpleNamespace(model_z=[0.0], verdict_z=[0.0], vehicle=None)
     with threadpool_limits(limits=2, user_api="blas"):
         before = blas_threads()
         with pytest.raises(RuntimeError, match="read ride.csv"):
             dg.diagnose("ride.csv")
+        with pytest.raises(RuntimeError, match="read other.csv"):
+            dg.score_model("other.csv", report)
         assert blas_threads() == before and max(before) == 2
-    assert seen == [[1] * len(before)]
+    assert seen == [[1] * len(before)] * 2
+
+
+def blas_threads() -> list[int]:
+    """Threads of each BLAS library loaded in the process."""
+    from threadpoolctl import threadpool_info
+
+    return sorted(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
 
 
 @pytest.mark.parametrize("speeds", ["fast", {"a": 1}, [[1.0, 2.0], [3.0]], [], [float("nan")]])
@@ -341,3 +346,16 @@ def test_bad_speeds_are_one_clear_error(speeds):
         REFERENCE_SCOOTER.fastest_rate(speeds)
     with pytest.raises(ValueError, match="speeds must be"):  # when built, not at the first new friction
         FrictionPlants(FrictionSchedule.constant(0.9), speeds=speeds)
+
+
+@pytest.mark.parametrize("speeds", [[0.0, 1e15], [-5.0], [10.0, 100.0]])
+def test_speeds_outside_the_vehicles_range_are_one_clear_error(speeds):
+    """A ride's speeds beyond the vehicle's valid range are refused as simulate() refuses them (a span of
+    1e15 m/s asked speed_grid for petabytes of speeds; a negative speed gave a mode rate silently)."""
+    from ptw_env.integrate import SimulationInputError, speed_grid, substeps_for
+    from ptw_env.vehicle import REFERENCE_SCOOTER
+
+    with pytest.raises(SimulationInputError, match="valid range"):
+        speed_grid(REFERENCE_SCOOTER, speeds)
+    with pytest.raises(SimulationInputError, match="valid range"):
+        substeps_for(0.01, vehicle=REFERENCE_SCOOTER, speeds=speeds)

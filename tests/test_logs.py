@@ -559,7 +559,7 @@ def test_ridden_part_keeps_the_longest_ridden_stretch_and_names_what_it_left_out
     whole = read_log(write_log(tmp_path / "whole.csv", columns(300, seed=5) | {"vx": np.full(300, 3.0)}))
     assert ridden_part(whole) == (whole, [])
     cols["vx"][::80] = 0.0  # no stretch of 1 s
-    with pytest.raises(LogDataError, match=r"no ridden stretch of at least 1 s \(longest: 0\.79 s\)"):
+    with pytest.raises(LogDataError, match=r"no ridden stretch of at least 1 s and 10 samples \(longest: 0\.79 s, 79 samples\)"):
         ridden_part(read_log(write_log(tmp_path / "short.csv", cols)))
 
 

@@ -518,3 +518,25 @@ def test_sb3_trains_on_the_vector_env():
             break
     else:
         pytest.fail("full torque should throw a vehicle over within 3 s")
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(seed=[None, None, None, -1]), "seeds must be integers >= 0"),
+    (dict(seed=-3), "seeds must be integers >= 0"),
+    (dict(options="abc"), "reset options must be a dict"),
+    (dict(options={"x0": "abc"}), "x0 must be 8 finite numbers"),
+    (dict(options={"x0": {}}), "x0 must be 8 finite numbers"),
+])
+def test_a_bad_reset_is_one_error_and_changes_nothing(kw, words):
+    """A refused reset leaves every env as it was: a bad seed in the list is found before any generator is
+    replaced (a first reset that failed half-way left an env on a placeholder generator, randomisation off)."""
+    r = {"payload:mass_kg": ("normal", 0.0, 10.0)}
+    venv = PTWRollVectorEnv(num_envs=4, randomize=r)
+    with pytest.raises(EnvConfigError, match=words):
+        venv.reset(**kw)
+    _, info = venv.reset(seed=7)
+    assert venv.np_random_seed == (7, 8, 9, 10)
+    _, ref = PTWRollVectorEnv(num_envs=4, randomize=r).reset(seed=7)
+    np.testing.assert_array_equal(info["randomized"]["payload:mass_kg"], ref["randomized"]["payload:mass_kg"])
+    with pytest.raises(EnvConfigError, match="step_speeds"):
+        PTWRollEnv(step_speeds=np.array([1, 2]))
