@@ -771,6 +771,110 @@ def input_series(t: np.ndarray, tau: np.ndarray, vx: np.ndarray, where: str = ""
     return tau, held_speed(t, v)
 
 
+#: Fewest consecutive identical readings at a channel's extreme that can read as a clipped sensor.
+CLIP_MIN_RUN = 3
+#: A channel is checked for clipping only when at most this fraction of its other consecutive readings repeat
+#: exactly: a noisy sensor never repeats a reading, so a flat top there is the sensor's limit; a channel that is
+#: often flat anyway (a quantised encoder, a held or noise-free signal) cannot show a clip by its shape.
+CLIP_REPEAT_MAX = 0.05
+#: Channels checked for clipping: the known ones but time and the speed (a GPS reading is held by design).
+CLIP_CHANNELS: tuple[str, ...] = tuple(c for c in KNOWN_COLUMNS if c not in ("t", "vx"))
+
+
+def clipped_samples(log: RideLog) -> dict[str, tuple[np.ndarray, float]]:
+    """The readings of ``log`` at a sensor's limit: ``{column: (mask, limit)}`` for each clipped column of
+    :data:`CLIP_CHANNELS` (one entry per clipped side; a column clipped at both ends has both limits' samples in
+    its mask, and ``limit`` is the side read more often).
+
+    A sensor (or an actuator's logged command) that saturates reads its limit exactly for as long as the true
+    value stays beyond it: a flat top. It is told from a signal that merely peaks by three facts, all required:
+
+    * at least :data:`CLIP_MIN_RUN` consecutive readings equal the column's maximum (or minimum), and that value
+      lies on its own side of zero (an upper limit above 0, a lower one below: a signal resting at 0 is not
+      clipped);
+    * the column's other readings seldom repeat (at most :data:`CLIP_REPEAT_MAX` of consecutive pairs): in a
+      noisy channel equal readings are the limit, in a quantised or noise-free one they are common and prove
+      nothing (such a channel is not judged);
+    * the signal arrives at or leaves the flat top at speed: the larger of the steps into and out of the run is
+      at least half the column's median step. A signal that settles at a smooth maximum slows to a stop
+      before it; a clipped one is cut while it is still moving.
+
+    Every reading equal to a found limit is in the mask (each says only that the true value is at or beyond
+    it). The check reads nothing of the vehicle: a limit is found from the data, so any sensor range works.
+    A clip smoothed by a filter before logging (an anti-alias resampling leaves no flat top) is not seen.
+    """
+    out: dict[str, tuple[np.ndarray, float]] = {}
+    for c in CLIP_CHANNELS:
+        if not log.has(c):
+            continue
+        x = np.asarray(log[c], dtype=float)
+        ok = np.isfinite(x)
+        if ok.sum() < 2 * CLIP_MIN_RUN:
+            continue
+        lo, hi = float(np.min(x[ok])), float(np.max(x[ok]))
+        if not hi > lo:
+            continue  # a constant column: nothing to clip
+        others = ok & (x != hi) & (x != lo)  # the readings between the extremes
+        pair = others[1:] & others[:-1]
+        if pair.sum() < CLIP_MIN_RUN:
+            continue
+        step = np.abs(np.diff(x))[pair]
+        if np.mean(step == 0.0) > CLIP_REPEAT_MAX:
+            continue  # quantised, held or noise-free: a flat top proves nothing
+        typical = float(np.median(step[step > 0.0]))
+        mask = np.zeros(x.size, dtype=bool)
+        reads = {}
+        for limit, side in ((hi, 1.0), (lo, -1.0)):
+            if not limit * side > 0.0:
+                continue  # an upper limit above zero, a lower one below
+            at = ok & (x == limit)
+            edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
+            found = False
+            for s, e in zip(edges[::2], edges[1::2]):
+                if e - s < CLIP_MIN_RUN:
+                    continue
+                into = abs(x[s - 1] - limit) if s > 0 and ok[s - 1] else 0.0
+                out_of = abs(x[e] - limit) if e < x.size and ok[e] else 0.0
+                if max(into, out_of) >= 0.5 * typical:
+                    found = True
+                    break
+            if found:
+                mask |= at
+                reads[limit] = int(at.sum())
+        if reads:
+            out[c] = (mask, max(reads, key=reads.get))
+    return out
+
+
+def without_clipped(log: RideLog) -> tuple[RideLog, list[str]]:
+    """``log`` with the readings at a sensor's limit (:func:`clipped_samples`) set as dropouts, and a note per
+    clipped column saying what was set aside and why. ``log`` itself, with no note, when nothing is clipped.
+
+    A clipped measured channel loses those samples from every comparison; a clipped ``tau`` (the input) makes
+    them unusable samples of the input (:func:`unusable_samples`): the commands leave them out as they do a
+    torque dropout. Shared by ``diagnose``, ``estimate`` and ``risk``: none of them may read a sensor's limit as
+    the vehicle's response (a clipped gyro would look like a stiffer or saturating tire)."""
+    clips = clipped_samples(log)
+    if not clips:
+        return log, []
+    cols = dict(log.columns)
+    notes = []
+    for c, (mask, limit) in clips.items():
+        cols[c] = np.where(mask, np.nan, cols[c])
+        k = int(np.flatnonzero(mask)[0])
+        what, use = (("a torque sensor's or the actuator's (or rider's) limit: which cannot be told, so the torque "
+                      "there is not taken as known", "the windows and stretches holding them are left out as for a "
+                      "torque dropout") if c == "tau" else
+                     ("a clipped sensor", "they are left out of every comparison"))
+        notes.append(f"column '{c}' reads its limit {limit:g} {COLUMN_UNITS.get(c, '')} at {int(mask.sum())} "
+                     f"sample(s) ({100.0 * mask.mean():.1f} %, the first at {log.where(k)}): {what}, not a vehicle "
+                     f"effect (flat tops at the column's extreme in a channel that otherwise never repeats a "
+                     f"reading); those readings are set as dropouts and {use}")
+    part = RideLog(t=log.t, columns=cols, meta=log.meta, path=log.path, ignored_columns=log.ignored_columns,
+                   lines=log.lines)
+    return part, notes
+
+
 def check_against_vehicle(log: RideLog, vehicle: Any) -> None:
     """Refuse a log whose steer angle goes beyond the vehicle's steering lock.
 

@@ -8,6 +8,10 @@ finds, what ``estimate`` removes, and what that does to the stiffness estimate.
   significant ones removed where the filter with them explains the log) on the clean and the offset log, and
   with ``--offsets none`` on the offset log. Rides and seeds fixed before the first run: urban, handling and
   the double lane change at seeds 300 and 301, 60 s each.
+* Drifts: the same rides once more with each offset a line over the log, from a start drawn uniform in
+  +-half the span above to an end drawn in +-the span (drawn after the constant offsets from the same
+  generator): the drift rate found, whether ``estimate`` used the drifting filter and removed the lines, and
+  the stiffness against the clean log's; and how often a drift is used on the clean and constant-offset logs.
 * The disclosed logs of ``shared/data`` (truth in the sidecars), with the defaults and with ``--offsets none``;
   the banked one also with ``--road-bank`` at its true bank.
 * The robot bicycle's measured rides (``shared/data/robot_bicycle``): what the filter reads as offsets, how
@@ -85,19 +89,33 @@ def main() -> None:
                 log = ride_scenario(make_scenario(ride, duration_s=60.0), effects=eff, seed=seed).log
                 rng = np.random.default_rng(seed)
                 off = {c: float(rng.uniform(-SPAN[c], SPAN[c])) for c in OFFSET_CHANNELS}
+                b0 = {c: float(rng.uniform(-SPAN[c] / 2, SPAN[c] / 2)) for c in OFFSET_CHANNELS}
+                b1 = {c: float(rng.uniform(-SPAN[c], SPAN[c])) for c in OFFSET_CHANNELS}
+                span_t = float(log.t[-1] - log.t[0])
+                rate = {c: (b1[c] - b0[c]) / span_t for c in OFFSET_CHANNELS}
+                line = {c: b0[c] + rate[c] * (log.t - log.t[0]) for c in OFFSET_CHANNELS}
                 clean_p, off_p = Path(tmp) / f"{ride}_{seed}.csv", Path(tmp) / f"{ride}_{seed}_off.csv"
+                drift_p = Path(tmp) / f"{ride}_{seed}_drift.csv"
                 write_log(clean_p, log.columns, meta=log.meta)
                 write_log(off_p, with_offsets(log, off).columns, meta=log.meta)
+                write_log(drift_p, with_offsets(log, line).columns, meta=log.meta)
                 clean, got, bare = run_estimate(clean_p), run_estimate(off_p), run_estimate(off_p, "--offsets", "none")
+                drifted = run_estimate(drift_p)
                 row = {"ride": ride, "seed": seed, "offsets": off, "found": got["sensor_offsets"],
                        "clean_found": clean["sensor_offsets"],
                        "scale_clean": ratios(clean), "scale_offsets_removed": ratios(got),
-                       "scale_offsets_kept": ratios(bare)}
+                       "scale_offsets_kept": ratios(bare),
+                       "drift_start": b0, "drift_end": b1, "drift_rate": rate, "drift_found": drifted["sensor_offsets"],
+                       "scale_drift_removed": ratios(drifted)}
                 sim.append(row)
                 for c in OFFSET_CHANNELS:
                     e = got["sensor_offsets"][c]
                     print(f"{ride:20s} {seed:4d}  {c:9s} {off[c]:+9.4f} {e['value']:+9.4f} {e['std']:8.2g} "
                           f"{'yes' if e['removed'] else 'no':>7s}")
+                for c in OFFSET_CHANNELS:
+                    d = drifted["sensor_offsets"][c]["drift"]
+                    print(f"{'':26s}drift {c:9s} {rate[c]:+10.3e} /s found {d['value']:+10.3e} (std {d['std']:.1e}) "
+                          f"used {'yes' if d['used'] else 'no'}, removed {'yes' if drifted['sensor_offsets'][c]['removed'] else 'no'}")
                 fmt = lambda r: f"{r[0]:.3f} / {r[1]:.3f}"  # noqa: E731
                 print(f"{'':26s}scale: clean log {fmt(row['scale_clean'])}; offset log, offsets removed "
                       f"{fmt(row['scale_offsets_removed'])}; offsets kept (--offsets none) {fmt(row['scale_offsets_kept'])};"
@@ -111,6 +129,19 @@ def main() -> None:
           f"removed {n_rm} of {len(err)}; on the clean logs removed {n_clean_rm} of {len(err)}; stiffness scale vs the "
           f"clean log's: with the offsets removed within {100 * max(dev_rm):.2f} % (median {100 * np.median(dev_rm):.2f} %), "
           f"kept {100 * min(dev_kept):.1f}-{100 * max(dev_kept):.1f} % off")
+    # drift: the error of the rate found, as the change it makes over the ride, in the channel's span
+    span_s = 60.0
+    derr = [abs(r["drift_found"][c]["drift"]["value"] - r["drift_rate"][c]) * span_s / SPAN[c]
+            for r in sim for c in OFFSET_CHANNELS]
+    n_used = sum(r["drift_found"][c]["drift"]["used"] for r in sim for c in OFFSET_CHANNELS)
+    n_drm = sum(r["drift_found"][c]["removed"] for r in sim for c in OFFSET_CHANNELS)
+    false_used = sum(e["drift"]["used"] for r in sim for key in ("found", "clean_found") for e in r[key].values())
+    dev_dr = [abs(a / b - 1) for r in sim for a, b in zip(r["scale_drift_removed"], r["scale_clean"])]
+    print(f"summary (drift): rates found within {100 * max(derr):.2f} % of the span per {span_s:g} s (median "
+          f"{100 * np.median(derr):.2f} %); the drifting filter used on {n_used} of {len(derr)} channels and lines "
+          f"removed on {n_drm}; a drift used on the clean and constant-offset logs: {false_used} of {2 * len(derr)}; "
+          f"stiffness scale vs the clean log's with the lines removed within {100 * max(dev_dr):.2f} % (median "
+          f"{100 * np.median(dev_dr):.2f} %)")
 
     print("\ndisclosed logs (shared/data, an independent simulator; truth in the sidecars): error of the front / rear "
           "estimate against the truth with the defaults and with --offsets none; offsets removed")
@@ -136,11 +167,16 @@ def main() -> None:
         offs = js["sensor_offsets"]
         worst = max((v, c) for c, v in js["offset_filter_nis"].items() if v is not None)
         real.append({"run": f.stem, "offsets": offs, "scale": ratios(js), "notes": js.get("notes", [])})
+        drifts = [c for c, e in offs.items() if e.get("drift", {}).get("significant")]
         print(f"{f.stem:16s} " + "  ".join(f"{c} {e['value']:+.4f}" for c, e in offs.items())
+              + f"  drifting {','.join(drifts) or '-'}"
               + f"  worst {worst[1]} {worst[0]:.1f}  removed {sum(e['removed'] for e in offs.values())}"
               + f"  scale {js['stiffness_ratio_to_nominal']['C_alpha_f']:.3f} / {js['stiffness_ratio_to_nominal']['C_alpha_r']:.3f}")
     n_real_rm = sum(e["removed"] for r in real for e in r["offsets"].values())
-    print(f"summary: {n_real_rm} offsets removed over {len(real)} rides ({time.perf_counter() - t0:.0f} s in all)")
+    n_real_dr = sum(bool(e.get("drift", {}).get("significant")) for r in real for e in r["offsets"].values())
+    n_real_used = sum(bool(e.get("drift", {}).get("used")) for r in real for e in r["offsets"].values())
+    print(f"summary: {n_real_rm} offsets removed over {len(real)} rides; {n_real_dr} channel drifts beyond "
+          f"3 standard deviations, {n_real_used} used ({time.perf_counter() - t0:.0f} s in all)")
     if out is not None:
         out.write_text(json.dumps({"simulated": sim, "disclosed": disclosed, "robot_bicycle": real}, indent=1) + "\n")
 

@@ -22,7 +22,7 @@ import pytest
 import assist.cli.estimate  # noqa: F401  (registers the subcommand)
 from assist.cli import main
 from assist.estimation.identification import (NIS_EXPLAINED, OFFSET_CHANNELS, IdentificationError, JointEKF,
-                                              estimate)
+                                              estimate, remove_offsets)
 from outside_effects import sensor_error
 from ptw_env.ride import ride_scenario
 from ptw_env.scenarios import make_scenario
@@ -153,3 +153,76 @@ def test_a_diverging_offset_filter_leaves_the_estimate_to_run_on_the_log_as_it_i
     np.testing.assert_array_equal(got.stiffness, estimate(clean, "adaptive").stiffness)
     with pytest.raises(IdentificationError, match="road_bank"):
         JointEKF(offsets="all", road_bank=True)
+
+
+#: Drifts added to the ride (rates [unit/s]): over the 60 s ride the yaw gyro's offset grows from 0 to
+#: 0.02 rad/s and the accelerometer's from -0.1 to +0.2 m/s^2, as a warming MEMS sensor's does.
+DRIFT_RATES = {"yaw_rate": 0.02 / 60.0, "ay": 0.3 / 60.0}
+DRIFT_START = {"yaw_rate": 0.0, "ay": -0.1}
+
+
+@pytest.fixture(scope="module")
+def drift_log(clean):
+    lg = clean
+    for c, r in DRIFT_RATES.items():
+        lg = sensor_error(lg, c, offset=DRIFT_START[c] + r * (clean.t - clean.t[0]))
+    return lg
+
+
+def test_the_drifting_filter_finds_each_drift_and_none_on_a_clean_ride(clean, drift_log):
+    """Measured: yaw rate 3.27e-4 for 3.33e-4 (rad/s)/s, ay 4.90e-3 for 5.0e-3 (m/s^2)/s (std 2e-5, 2e-4);
+    the other channels' drifts within 2 standard deviations of zero; none significant on the clean ride."""
+    ekf = JointEKF(offsets="all", drift=True).fit(drift_log)
+    table = ekf.offset_table()
+    assert ekf.drifting and ekf.explains
+    for c, r in DRIFT_RATES.items():
+        d = table[c]["drift"]
+        assert d["significant"] and abs(d["value"] - r) <= 0.05 * abs(r), (c, d)
+        # the offset at the log's end is the line's end
+        assert abs(table[c]["value"] - (DRIFT_START[c] + r * (drift_log.t[-1] - drift_log.t[0]))) <= 0.05 * abs(r) * 60
+    for c in set(OFFSET_CHANNELS) - set(DRIFT_RATES):
+        assert not table[c]["drift"]["significant"], (c, table[c])
+    assert not JointEKF(offsets="all", drift=True).fit(clean).drifting
+    json.dumps(table, allow_nan=False)
+
+
+def test_estimate_removes_drifting_offsets_as_lines(clean, drift_log):
+    """The adaptive observer on the drift log: the drifting filter is used, the lines removed, and the estimate
+    is within 1 % of the clean log's; with the offsets taken as constants or kept, it is further off. On the
+    clean log no drift is used."""
+    ref = estimate(clean, "adaptive", offsets="all")
+    assert not any(e["drift"]["used"] for e in ref.info["offsets"].values())
+    got = estimate(drift_log, "adaptive", offsets="all")
+    offs = got.info["offsets"]
+    assert all(e["drift"]["used"] for e in offs.values())
+    assert offs["yaw_rate"]["removed"] and offs["ay"]["removed"]
+    err = np.max(np.abs(got.final_third_mean() / ref.final_third_mean() - 1.0))
+    assert err <= 0.01, err
+    bare = estimate(drift_log, "adaptive")
+    assert np.max(np.abs(bare.final_third_mean() / ref.final_third_mean() - 1.0)) > 3 * err
+    # constant offsets only (the constant filter's significant offsets removed): further off than the lines
+    table = JointEKF(offsets="all").fit(drift_log).offset_table()
+    const = estimate(remove_offsets(drift_log, {c: {**e, "removed": e["significant"]} for c, e in table.items()}),
+                     "adaptive")
+    assert np.max(np.abs(const.final_third_mean() / ref.final_third_mean() - 1.0)) > err
+
+
+def test_drift_needs_offsets_and_a_bool():
+    with pytest.raises(IdentificationError, match="drift=True needs offsets"):
+        JointEKF(drift=True)
+    with pytest.raises(IdentificationError, match="drift must be"):
+        JointEKF(offsets="all", drift=1)
+
+
+def test_the_cli_says_which_offsets_drift(drift_log, tmp_path, capsys):
+    from ptw_env.logs import write_log
+
+    p, out = tmp_path / "drift.csv", tmp_path / "e.json"
+    write_log(p, drift_log.columns, meta=drift_log.meta)
+    assert main(["estimate", str(p), "--json", str(out)]) == 0
+    js = json.loads(out.read_text())
+    note = [n for n in js["notes"] if n.startswith("sensor offset")]
+    assert len(note) == 1 and "removed" in note[0] and "a line over the log" in note[0]
+    assert "yaw_rate" in note[0] and "drifting" in note[0]
+    assert js["sensor_offsets"]["ay"]["drift"]["unit"] == "(m/s^2)/s"
+    assert "drifting" in capsys.readouterr().out

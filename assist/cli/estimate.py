@@ -37,31 +37,40 @@ def _offsets_option(text: str) -> tuple[str, ...]:
 
 def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None], method: str) -> list[str]:
     """The notes ``estimate`` prints for the sensor offsets it estimated (``info["offsets"]`` and
-    ``info["offset_filter_nis"]`` of :func:`assist.estimation.identification.estimate`): those removed, those
-    found but kept (the filter's model does not explain the log even with them: its worst channels named),
-    those estimated jointly (``ukf``)."""
+    ``info["offset_filter_nis"]`` of :func:`assist.estimation.identification.estimate`): those removed (as
+    constants, or as lines over the log where they drift), those found but kept (the filter's model does not
+    explain the log even with them: its worst channels named), those estimated jointly (``ukf``), and drifts
+    read but not used."""
     from assist.estimation.identification import NIS_EXPLAINED, OFFSET_SIGNIFICANCE
 
-    def fmt(items):
-        return ", ".join(f"{c} {e['value']:+.4g} {e['unit']} (std {e['std']:.2g})" for c, e in items)
+    def drifting(e: dict) -> bool:
+        return bool(e.get("drift", {}).get("significant"))
 
-    sig = [(c, e) for c, e in offsets.items() if e["significant"]]
+    def fmt(items):
+        return ", ".join(f"{c} {e['value']:+.4g} {e['unit']} (std {e['std']:.2g}"
+                         + (f"; drifting {e['drift']['value']:+.3g} {e['drift']['unit']}, std {e['drift']['std']:.2g}"
+                            if drifting(e) else "") + ")" for c, e in items)
+
+    sig = [(c, e) for c, e in offsets.items() if e["significant"] or drifting(e)]
     if not sig:
         return []
     beyond = f"beyond {OFFSET_SIGNIFICANCE:g} standard deviations"
+    used = any(e.get("drift", {}).get("used") for _, e in sig)
+    how = (" (each a line over the log: a constant offset and a linear drift, the filter with drifting offsets "
+           "explaining the log)" if used else "")
     if method == "ukf":
-        return [f"sensor offset(s) {beyond}, estimated jointly with the states and stiffness: {fmt(sig)} (an offset, "
-                "or a model error it stands in for: 'ptw-assist diagnose' tells them apart)"]
+        return [f"sensor offset(s) {beyond}, estimated jointly with the states and stiffness{how}: {fmt(sig)} (an "
+                "offset, or a model error it stands in for: 'ptw-assist diagnose' tells them apart)"]
     removed = [(c, e) for c, e in sig if e.get("removed")]
     if removed:
         bank = "--road-bank" if method == "adaptive" else "--method adaptive --road-bank"
-        return [f"sensor offset(s) {beyond} removed from the log before the estimate: {fmt(removed)} (the filter "
+        return [f"sensor offset(s) {beyond} removed from the log before the estimate{how}: {fmt(removed)} (the filter "
                 f"with them explains every channel: mean squared innovation at most {NIS_EXPLAINED:g} times its "
                 f"predicted variance; a road bank the model lacks reads much the same at a steady speed: if the road "
                 f"is banked, give {bank})"]
     worst = sorted(((v, c) for c, v in nis.items() if v is not None), reverse=True)[:2]
-    return [f"sensor offset(s) {beyond} found but not removed: {fmt(sig)}; the model does not explain the log even "
-            "with them (mean normalised innovation " + ", ".join(f"{c} {v:.1f}" for v, c in worst)
+    return [f"sensor offset(s) or drift(s) {beyond} found but not removed: {fmt(sig)}; the model does not explain "
+            "the log even with them (mean normalised innovation " + ", ".join(f"{c} {v:.1f}" for v, c in worst)
             + f"; at most {NIS_EXPLAINED:g} when it does), so they would stand in for a model error: "
               "'ptw-assist diagnose' says which part of the model misses"]
 
@@ -135,14 +144,16 @@ def _build(p: argparse.ArgumentParser):
                    help="sensor offsets estimated as nuisance parameters (joint EKF with the states and stiffness; "
                         "for the other methods run first: each offset beyond 3 of its standard deviations is removed "
                         "from the log before the method runs, if the filter with the offsets explains every channel, "
-                        "mean normalised innovation at most 3; else they are reported, not removed): all (default: "
+                        "mean normalised innovation at most 3; else they are reported, not removed; a second filter with "
+                        "linearly drifting offsets replaces the first where a drift stands out and it explains the log: "
+                        "the offsets are then removed as lines over the log): all (default: "
                         "delta, yaw_rate, roll_rate, ay), none, or a comma-separated list of those channels")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
 
     def run(a: argparse.Namespace) -> int:
-        from ptw_env.logs import read_log, ridden_part
+        from ptw_env.logs import read_log, ridden_part, without_clipped
         from ptw_env.sensors import SensorConfig
 
         from assist.estimation.adaptive_design import AdaptiveDesignOptions, design_for_vehicle
@@ -154,7 +165,9 @@ def _build(p: argparse.ArgumentParser):
         check_outputs(a, "plot", "json")
         if a.tau_a is not None and not (math.isfinite(a.tau_a) and a.tau_a > 0):
             raise CLIError(f"--tau-a: expected a positive time in seconds, got {a.tau_a}")
-        log, trimmed = ridden_part(read_log(a.log))  # standstills and torque dropouts: the longest ridden stretch
+        log, clipped = without_clipped(read_log(a.log))  # readings at a sensor's limit: dropouts, said
+        log, trimmed = ridden_part(log)  # standstills and torque dropouts: the longest ridden stretch
+        trimmed = clipped + trimmed
         vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         why = resolve_design(a)
         dt = float(log.dt)

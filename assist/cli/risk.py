@@ -45,7 +45,7 @@ def _build(p: argparse.ArgumentParser):
 
         import numpy as np
 
-        from ptw_env.logs import read_log, ridden_part, sidecar_noise_pct
+        from ptw_env.logs import read_log, ridden_part, without_clipped, sidecar_noise_pct
 
         from assist.risk.evaluation import truth_from_log
         from assist.risk.monitor import RiskConfig, RiskMonitor
@@ -53,7 +53,9 @@ def _build(p: argparse.ArgumentParser):
         from assist.risk.pipeline import RiskPipeline, default_estimator
 
         check_outputs(a, "plot", "json")
-        log, trimmed = ridden_part(read_log(a.log))  # standstills and torque dropouts: the longest ridden stretch
+        log, clipped = without_clipped(read_log(a.log))  # readings at a sensor's limit: dropouts, said
+        log, trimmed = ridden_part(log)  # standstills and torque dropouts: the longest ridden stretch
+        trimmed = clipped + trimmed
         vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         dt = float(log.dt)
         pct = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)

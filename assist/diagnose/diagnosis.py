@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ptw_env.logs import LogFormatError, RideLog, check_against_vehicle, read_log
+from ptw_env.logs import LogFormatError, RideLog, check_against_vehicle, read_log, without_clipped
 from ptw_env.effects import SENSOR_CAUSES
 from ptw_env.integrate import one_blas_thread
 from ptw_env.sensors import DEFAULT_NOISE_STD
@@ -302,13 +302,16 @@ def replay_windows(log: RideLog, vehicle: Vehicle, window_s: float | None = None
     """The log checked against the vehicle and cut into the diagnosis's replay windows
     (:func:`assist.diagnose.data.make_windows`; ``window_s`` None: :func:`~assist.diagnose.data.auto_window`).
     Returns ``(windows, notes)``; a log the diagnosis cannot use raises :class:`DiagnoseInputError` naming it,
-    which is how a fleet is checked before any diagnosis starts."""
+    which is how a fleet is checked before any diagnosis starts. Readings at a sensor's limit
+    (:func:`ptw_env.logs.without_clipped`) are dropouts there, and the notes say so."""
     try:
         check_against_vehicle(log, vehicle)
     except LogFormatError as exc:
         raise DiagnoseInputError(str(exc)) from None
-    return make_windows(log, window_s if window_s is not None else auto_window(log.duration_s, lead_s), lead_s,
-                        vehicle.vmin, vehicle.vmax, source=source if source is not None else str(log.path or "log"))
+    log, clipped = without_clipped(log)  # readings at a sensor's limit are dropouts, said in the notes
+    win, notes = make_windows(log, window_s if window_s is not None else auto_window(log.duration_s, lead_s), lead_s,
+                              vehicle.vmin, vehicle.vmax, source=source if source is not None else str(log.path or "log"))
+    return win, clipped + notes
 
 
 def nominal_replay(log: RideLog, name: str, vehicle: Vehicle, window_s: float | None = None, lead_s: float = 0.1,

@@ -469,9 +469,10 @@ def _f_aug(x, s, M, c, g, vx, inv_sigma, fmax, bank, H0, H1, c0, out):
 
 @njit(cache=True)
 def _ekf_run(Zout, Pdiag, Nis, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, nsub, H0, H1, c0, C, rvar,
-             Qc, fd_eps, s_lo, s_hi):
+             Qc, fd_eps, s_lo, s_hi, nd):
     K = Y.shape[0]
-    n = z.shape[0]  # 8 states, 4 stiffness scales, then the sensor offsets (constant: no dynamics)
+    n = z.shape[0]  # 8 states, 4 stiffness scales, the sensor offsets b, then nd drift rates d (b' = d, d' = 0)
+    nb = n - 12 - nd
     M = np.empty((8, 8))
     c = np.empty(8)
     g = np.empty((8, 2))
@@ -539,6 +540,8 @@ def _ekf_run(Zout, Pdiag, Nis, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, n
             for i in range(8):
                 acc += (H0[jj, i] + vx * H1[jj, i]) * x[i]
             F[6 + jj // 2, 8 + jj] = acc * c0[jj]
+        for j in range(nd):  # the first nd offsets drift: b_j' = d_j
+            F[12 + j, 12 + nb + j] = 1.0
         hsub = dt / nsub
         Fh = F * hsub
         Fh2 = Fh @ Fh
@@ -571,6 +574,8 @@ def _ekf_run(Zout, Pdiag, Nis, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, n
             if not np.isfinite(x[i]):
                 return k + 1
             z[i] = x[i]
+        for j in range(nd):
+            z[12 + j] += dt * z[12 + nb + j]
     return K
 
 
@@ -596,16 +601,21 @@ class JointEKF:
     road_bank : float
         Known bank of the road [rad] (effects.md ``road_bank``) in the filter's plant (default level): a bank
         the plant lacks reads as offsets of ``ay`` and the gyros.
+    drift : bool
+        The offsets drift linearly over the log (module docstring: ``b' = d``, ``d' = 0``; default False:
+        constant offsets).
 
     ``fit(log)`` sets ``stiffness_`` (K, 4), ``x_hat_`` (K, 8), ``stiffness_std_`` (K, 4), ``t_``, and
-    ``offsets_``, ``offsets_std_`` (K, number of offsets; channel units: rad, rad/s, m/s^2).
+    ``offsets_``, ``offsets_std_`` (K, number of offsets; channel units: rad, rad/s, m/s^2); with ``drift``
+    also ``drifts_``, ``drifts_std_`` (K, number of offsets; channel units per second).
     """
 
     name = "ukf"
 
     def __init__(self, sensors: SensorConfig | None = None, process_std=DEFAULT_PROCESS_STD,
                  stiffness_walk: float = 0.005, stiffness_std0: float = 0.5, band=DEFAULT_BAND,
-                 model: LPVModel | None = None, offsets: Sequence[str] = (), road_bank: float = 0.0) -> None:
+                 model: LPVModel | None = None, offsets: Sequence[str] = (), road_bank: float = 0.0,
+                 drift: bool = False) -> None:
         self.model = build_lpv_model() if model is None else model
         self.sensors = SensorConfig.from_percent(5, vehicle=self.model.vehicle) if sensors is None else sensors
         if not isinstance(self.sensors, SensorConfig):
@@ -625,6 +635,11 @@ class JointEKF:
         if isinstance(road_bank, bool) or not (isinstance(road_bank, (int, float)) and math.isfinite(road_bank)):
             raise IdentificationError(f"road_bank must be a finite number of rad, got {road_bank!r}")
         self.road_bank = float(road_bank)
+        if not isinstance(drift, bool):
+            raise IdentificationError(f"drift must be True or False, got {drift!r}")
+        if drift and not self.offsets:
+            raise IdentificationError("drift=True needs offsets: the drift is that of the offsets' channels")
+        self.drift = drift
 
     def fit(self, log) -> "JointEKF":
         m = self.model
@@ -641,14 +656,16 @@ class JointEKF:
         # the offsets: constant states b_c read by their channel's output row (y_c = C_c x + b_c)
         rows = [OUTPUT_NAMES.index(c) for c in self.offsets]
         nb = len(rows)
-        n = 12 + nb
+        nd = nb if self.drift else 0  # drift rates d_c (b_c' = d_c): a line over the log per offset
+        n = 12 + nb + nd
         C = np.zeros((len(OUTPUT_NAMES), n))
         C[:, :8] = m.C
         for j, r in enumerate(rows):
             C[r, 12 + j] = 1.0
         b_std0 = OFFSET_PRIOR_NOISE * np.sqrt(rvar[rows])
-        Qc = np.diag(np.r_[self.process_std**2, np.full(4, self.stiffness_walk**2), np.zeros(nb)])
-        P0 = np.diag(np.r_[(STATE_SCALE * 0.1) ** 2, np.full(4, self.stiffness_std0**2), b_std0**2])
+        d_std0 = b_std0[:nd] / max(float(t[-1] - t[0]), dt)  # a drift moving the offset by its prior over the log
+        Qc = np.diag(np.r_[self.process_std**2, np.full(4, self.stiffness_walk**2), np.zeros(nb + nd)])
+        P0 = np.diag(np.r_[(STATE_SCALE * 0.1) ** 2, np.full(4, self.stiffness_std0**2), b_std0**2, d_std0**2])
         z = np.zeros(n)
         K = len(t)
         Z = np.zeros((K, n))
@@ -658,15 +675,18 @@ class JointEKF:
         k_end = _ekf_run(Z, Pd, nis, z, P0.copy(), np.ascontiguousarray(Y), np.ascontiguousarray(tau),
                          np.ascontiguousarray(vx), W[0], isg[0], fmx[0], float(bk[0]), dt, substeps_for(dt),
                          np.ascontiguousarray(m.H0), np.ascontiguousarray(m.H1), np.ascontiguousarray(m.theta0), C,
-                         rvar, Qc, STATE_SCALE * 1e-4, np.full(4, lo - 1.0), np.full(4, hi - 1.0))
+                         rvar, Qc, STATE_SCALE * 1e-4, np.full(4, lo - 1.0), np.full(4, hi - 1.0), nd)
         if k_end < K:
             raise IdentificationError(f"the EKF diverged at t = {t[k_end - 1]:.2f} s (sample {k_end - 1})")
         self.t_ = t
         self.x_hat_ = Z[:, :8]
         self.stiffness_ = (1.0 + Z[:, 8:12]) * m.theta0
         self.stiffness_std_ = np.sqrt(np.maximum(Pd[:, 8:12], 0.0)) * m.theta0
-        self.offsets_ = Z[:, 12:]
-        self.offsets_std_ = np.sqrt(np.maximum(Pd[:, 12:], 0.0))
+        self.offsets_ = Z[:, 12:12 + nb]
+        self.offsets_std_ = np.sqrt(np.maximum(Pd[:, 12:12 + nb], 0.0))
+        if nd:
+            self.drifts_ = Z[:, 12 + nb:]
+            self.drifts_std_ = np.sqrt(np.maximum(Pd[:, 12 + nb:], 0.0))
         # mean normalised innovation squared per channel over the log's second half (the first holds the
         # filter's convergence from its prior): near 1 when the model (with its offsets) explains the channel
         half = nis[K // 2:]
@@ -685,13 +705,25 @@ class JointEKF:
         ``significant`` when ``|value| > OFFSET_SIGNIFICANCE std``; ``nis`` the channel's mean normalised
         innovation squared over the log's second half (:attr:`nis_`): an offset can only be read as a sensor's
         when the model with it explains its channel (``nis`` up to :data:`NIS_EXPLAINED`); far above that the
-        "offset" is what a model error leaves in the channel."""
+        "offset" is what a model error leaves in the channel. With ``drift``, ``value`` is the offset at the
+        log's end and ``drift`` gives its rate: ``{"value", "std", "unit", "significant", "t_ref_s"}``, the
+        offset at time ``t`` being ``value + drift (t - t_ref_s)``."""
         out: dict[str, dict[str, Any]] = {}
         for j, c in enumerate(self.offsets):
             v, sd = float(self.offsets_[-1, j]), float(self.offsets_std_[-1, j])
             out[c] = {"value": v, "std": sd, "unit": OFFSET_UNITS[c], "significant": bool(abs(v) > OFFSET_SIGNIFICANCE * sd),
                       "nis": self.nis_[c]}
+            if self.drift:
+                d, dsd = float(self.drifts_[-1, j]), float(self.drifts_std_[-1, j])
+                out[c]["drift"] = {"value": d, "std": dsd, "unit": f"({OFFSET_UNITS[c]})/s" if "/" in OFFSET_UNITS[c] else f"{OFFSET_UNITS[c]}/s",
+                                   "significant": bool(abs(d) > OFFSET_SIGNIFICANCE * dsd), "t_ref_s": float(self.t_[-1])}
         return out
+
+    @property
+    def drifting(self) -> bool:
+        """True when some offset's drift stands out of its standard deviation by :data:`OFFSET_SIGNIFICANCE`
+        (always False for constant offsets)."""
+        return self.drift and any(e["drift"]["significant"] for e in self.offset_table().values())
 
     def result(self) -> EstimationResult:
         info: dict[str, Any] = {"filter": "extended Kalman filter (joint states and stiffness scales"
@@ -726,15 +758,49 @@ def offset_channels(offsets: Sequence[str] | str) -> tuple[str, ...]:
 
 def remove_offsets(log, table: dict[str, dict[str, Any]]):
     """``log`` with each offset of ``table`` (:meth:`JointEKF.offset_table`) marked ``removed`` subtracted from
-    its channel (a new :class:`ptw_env.logs.RideLog`; ``log`` itself when none is)."""
+    its channel, with its ``drift`` where the table holds one (the line ``value + drift (t - t_ref_s)``; a new
+    :class:`ptw_env.logs.RideLog`; ``log`` itself when none is)."""
     from ptw_env.logs import RideLog
 
-    drop = {c: e["value"] for c, e in table.items() if e.get("removed")}
+    t = np.asarray(log.t, dtype=float)
+    drop = {c: e["value"] + (e["drift"]["value"] * (t - e["drift"]["t_ref_s"]) if "drift" in e else 0.0)
+            for c, e in table.items() if e.get("removed")}
     if not drop:
         return log
     cols = {k: (v - drop[k] if k in drop else v) for k, v in log.columns.items()}
     return RideLog(t=log.t, columns=cols, meta=log.meta, path=log.path, ignored_columns=log.ignored_columns,
                    lines=log.lines)
+
+
+def _with_drift(ekf: JointEKF, log) -> tuple[JointEKF, dict[str, dict[str, Any]]]:
+    """The offsets' filter to use and the drift estimates to report. The same filter with drifting offsets
+    (``drift=True``) is run beside ``ekf``; it replaces ``ekf`` when a drift stands out
+    (:attr:`JointEKF.drifting`) and that filter explains the log (:attr:`JointEKF.explains`); else ``ekf``
+    stays, and the drifts (``{}`` if that filter diverged) are reported, not used."""
+    d = JointEKF(sensors=ekf.sensors, process_std=ekf.process_std, stiffness_walk=ekf.stiffness_walk,
+                 stiffness_std0=ekf.stiffness_std0, band=ekf.band, model=ekf.model, offsets=ekf.offsets,
+                 road_bank=ekf.road_bank, drift=True)
+    try:
+        d.fit(log)
+    except IdentificationError:
+        return ekf, {}
+    if d.drifting and d.explains:
+        return d, {}
+    return ekf, {c: e["drift"] for c, e in d.offset_table().items()}
+
+
+def _drift_reported(table: dict[str, dict[str, Any]], drifts: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """``table`` with the drifts of a filter that was not used, each marked ``"used": False`` (the offsets
+    removed are then constant); the drifts of the filter used are marked ``"used": True``."""
+    out = {}
+    for c, e in table.items():
+        if "drift" in e:
+            out[c] = {**e, "drift": {**e["drift"], "used": True}}
+        elif c in drifts:
+            out[c] = {**e, "drift": {**drifts[c], "used": False}}
+        else:
+            out[c] = dict(e)
+    return out
 
 
 # --------------------------------------------------------------------------- one entry point
@@ -756,7 +822,10 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
     (``ukf``: never, they are estimated jointly); ``info["offset_filter_nis"]`` every channel's
     (:attr:`JointEKF.nis_`). A known bank (``observer.road_bank``) goes into the filter's plant. If that filter
     diverges, the method runs on the log as it is and ``info["offsets_error"]`` says why. A given ``x_hat``
-    (estimated on the log before its offsets were removed) with an offset to remove is an error.
+    (estimated on the log before its offsets were removed) with an offset to remove is an error. Drifts: the
+    same filter with linearly drifting offsets runs beside it and is used instead when a drift stands out and
+    it explains the log (each offset removed is then a line over the log); each entry's ``drift`` gives the
+    rate, its standard deviation and whether that filter was ``used`` (:func:`_with_drift`).
 
     ``model`` is the vehicle's LPV model (:func:`assist.estimation.lpv_model.build_lpv_model`; default the
     observer's, else the reference scooter's); ``observer`` must be designed on it. ``direct`` and
@@ -779,11 +848,13 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
     chans = offset_channels(offsets)
     bank = observer.road_bank if observer is not None else 0.0  # a known bank in the filter's plant too
     if meth == "ukf":
-        res = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log).result()
+        ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log)
         if not chans:
-            return res
-        table = {c: {**e, "removed": False} for c, e in res.info["offsets"].items()}  # estimated jointly
-        return dataclasses.replace(res, info={**res.info, "offsets": table})
+            return ekf.result()
+        ekf, drifts = _with_drift(ekf, log)
+        res = ekf.result()
+        table = {c: {**e, "removed": False} for c, e in _drift_reported(res.info["offsets"], drifts).items()}
+        return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": dict(ekf.nis_)})
     if chans:
         ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank)  # bad arguments: an error
         try:
@@ -792,9 +863,13 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
             res = estimate(log, method, sensors=sensors, observer=observer, x_hat=x_hat, ls_options=ls_options,
                            model=model)
             return dataclasses.replace(res, info={**res.info, "offsets_error": str(exc)})
-        # an offset is removed only where the data determine it and the model with the offsets explains the
-        # log: otherwise the "offsets" are what a model error leaves in the channels, and removing them is a guess
-        table = {c: {**e, "removed": bool(e["significant"] and ekf.explains)} for c, e in ekf.offset_table().items()}
+        ekf, drifts = _with_drift(ekf, log)
+        # an offset is removed only where the data determine it (or its drift) and the model with the offsets
+        # explains the log: otherwise the "offsets" are what a model error leaves in the channels, and removing
+        # them is a guess
+        table = {c: {**e, "removed": bool((e["significant"] or e.get("drift", {}).get("significant", False))
+                                          and ekf.explains)}
+                 for c, e in _drift_reported(ekf.offset_table(), drifts).items()}
         if x_hat is not None and any(e["removed"] for e in table.values()):
             raise IdentificationError("x_hat was estimated on the log before its sensor offsets were removed: "
                                       "pass offsets=() with it, or leave x_hat out (the observer then runs on the "
