@@ -140,6 +140,17 @@ class Windows:
     t0: np.ndarray
 
     @property
+    def t_mid(self) -> float:
+        """Log time of the middle of the span the windows cover [s] (the reference of a sensor drift closure,
+        :class:`assist.diagnose.params.ClosureTerm`)."""
+        return float(0.5 * (self.t0.min() + self.t0.max() + (self.n - 1) * self.dt))
+
+    @property
+    def t_half(self) -> float:
+        """Half the span the windows cover [s] (a sensor drift closure's time scale)."""
+        return float(0.5 * (self.t0.max() - self.t0.min() + (self.n - 1) * self.dt))
+
+    @property
     def n(self) -> int:
         """Samples per window (lead included)."""
         return int(self.Y.shape[1])
@@ -191,7 +202,8 @@ def make_windows(log: RideLog, window_s: float, lead_s: float, vmin: float, vmax
             continue
         starts.append(s)
     if bad_tau:
-        notes.append(f"{bad_tau} window(s) left out: dropouts in column 'tau'")
+        notes.append(f"{bad_tau} window(s) left out: unread samples in column 'tau' (dropouts, or readings at "
+                     "a clipped limit)")
     if bad_v:
         k = np.flatnonzero(raw_out)
         first = (f"; measured vx = {raw_v[k[0]]:g} m/s at sample {k[0]} (t = {log.t[k[0]]:g} s), "

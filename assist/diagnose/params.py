@@ -153,12 +153,15 @@ class ClosureTerm:
 
     A dynamic term is a generalised force ``c * feature`` added to one equation of model.md
     (:func:`ptw_env.dynamics.add_generalised_forces`); a sensor term changes one measured channel
-    (``offset``: ``y + c``; ``scale``: ``y (1 + c)``).
+    (``offset``: ``y + c``; ``scale``: ``y (1 + c)``; ``drift``: ``y + c (t - t_mid) / t_half``, a linear
+    drift of the channel's offset about the middle ``t_mid`` of the span the log's replay windows cover,
+    ``t_half`` half that span (:attr:`assist.diagnose.data.Windows.t_mid`): ``c`` is how far the offset moves
+    from the middle of the log to its end, in the channel's unit, whatever the log's length).
     """
 
     name: str
     equation: str  #: "steer" | "roll" | "yaw" | "lateral" | "sensor:<channel>"
-    feature: str  #: a key of ptw_env.dynamics.FORCE_FEATURES, or "offset" / "scale" for a sensor
+    feature: str  #: a key of ptw_env.dynamics.FORCE_FEATURES, or "offset" / "scale" / "drift" for a sensor
     term: str  #: the formula, in the state names of model.md
     unit: str  #: unit of the coefficient c
 
@@ -166,8 +169,9 @@ class ClosureTerm:
 #: The library of closure terms (issue: extend the model beyond the table of effects). Steering:
 #: viscous and Coulomb friction, a torque offset, a speed-dependent self-aligning term; roll: a
 #: moment offset (rider lean, luggage) and a speed-squared aerodynamic moment; yaw and lateral:
-#: aerodynamic moment and force in vx^2 and vx*vy; sensors: offsets and scale factors (delays are
-#: effects.md's ``sensor_delay``).
+#: aerodynamic moment and force in vx^2 and vx*vy; sensors: offsets, scale factors and the linear drifts of
+#: the gyros' and the accelerometer's offsets (a warming MEMS sensor's; delays are effects.md's ``sensor_delay``,
+#: constant gyro offsets its ``gyro_bias``).
 CLOSURE_LIBRARY: tuple[ClosureTerm, ...] = (
     ClosureTerm("steer_viscous", "steer", "delta_dot", "c * delta_dot", "N m s/rad"),
     ClosureTerm("steer_coulomb", "steer", "tanh(delta_dot/w)", "c * tanh(delta_dot / 0.02)", "N m"),
@@ -183,6 +187,9 @@ CLOSURE_LIBRARY: tuple[ClosureTerm, ...] = (
     ClosureTerm("ay_offset", "sensor:ay", "offset", "ay + c", "m/s^2"),
     ClosureTerm("yaw_rate_scale", "sensor:yaw_rate", "scale", "yaw_rate * (1 + c)", "-"),
     ClosureTerm("ay_scale", "sensor:ay", "scale", "ay * (1 + c)", "-"),
+    ClosureTerm("yaw_rate_drift", "sensor:yaw_rate", "drift", "yaw_rate + c * (t - t_mid) / t_half", "rad/s"),
+    ClosureTerm("roll_rate_drift", "sensor:roll_rate", "drift", "roll_rate + c * (t - t_mid) / t_half", "rad/s"),
+    ClosureTerm("ay_drift", "sensor:ay", "drift", "ay + c * (t - t_mid) / t_half", "m/s^2"),
 )
 CLOSURES: dict[str, ClosureTerm] = {t.name: t for t in CLOSURE_LIBRARY}
 
@@ -191,7 +198,8 @@ def _closure_specs(vehicle: Vehicle, s: "VehicleScales") -> tuple[ParamSpec, ...
     """Search ranges of the closure coefficients in the vehicle's units (module docstring): steering
     torques up to 0.1 |a61| x 1 rad, roll and yaw moments up to 0.24 a51 x 1 rad (the roll-moment
     offset's range, also at the top speed for the speed-dependent ones), lateral forces up to
-    0.1 M g at the top speed."""
+    0.1 M g at the top speed; sensor offsets and drifts in the sensors' own units (no vehicle number): a
+    drift up to 0.1 rad/s (gyros) or 1 m/s^2 (accelerometer) from the middle of the log to its end."""
     tq = abs(float(vehicle.A0[DELTA_DOT, PHI]))  # |a61| [N m/rad]
     K, Mg, v, c = s.roll_stiffness, s.mass * 9.81, float(vehicle.vmax), s.steer_critical
     a62 = abs(float(vehicle.A0[DELTA_DOT, DELTA]))
@@ -201,6 +209,7 @@ def _closure_specs(vehicle: Vehicle, s: "VehicleScales") -> tuple[ParamSpec, ...
         "yaw_aero": 0.24 * K / v**2, "yaw_vx_vy": 0.24 * K / v, "lateral_aero": 0.1 * Mg / v**2,
         "lateral_vx_vy": 0.1 * Mg / v, "delta_offset": 0.05, "ay_offset": 1.0,
         "yaw_rate_scale": 0.3, "ay_scale": 0.3,
+        "yaw_rate_drift": 0.1, "roll_rate_drift": 0.1, "ay_drift": 1.0,  # typical sizes: gyro_bias's, ay_offset's
     }
     out = []
     for t in CLOSURE_LIBRARY:

@@ -260,6 +260,9 @@ class Replay:
                 j = w.channels.index(ch)
                 if term.feature == "offset":
                     Y[..., j] += col[:, None]
+                elif term.feature == "drift":  # y + c (t - t_mid) / t_half, t the log time of each sample
+                    t = (w.t0[widx][:, None] + w.dt * np.arange(w.n)[None, :] - w.t_mid) / w.t_half
+                    Y[..., j] += col[:, None] * np.tile(t, (m, 1))
                 else:
                     Y[..., j] *= 1.0 + col[:, None]
         if not _below(Y.reshape(1, 1, 1, -1), _DIVERGED)[0, 0]:  # a candidate that diverges: a huge but finite misfit

@@ -228,8 +228,11 @@ class DiagnosisReport:
             terms = "; ".join(f"{t['equation']}: {t['term']} with c = {t['coefficient']:g}"
                               + (f" +- {t['std']:g}" if t["std"] is not None else "") + f" {t['unit']}"
                               for t in self.extension["terms"])
+            sensors = [t["name"] for t in self.extension["terms"] if t["equation"].startswith("sensor:")]
             lines.append(f"model extended beyond effects.md ({'explains' if self.extended else 'does not explain'} "
-                         f"the log to within the noise; held-out gain {self.extension['gain']:.3f}): {terms}")
+                         f"the log to within the noise; held-out gain {self.extension['gain']:.3f}): {terms}"
+                         + (f"; {', '.join(sensors)}: the sensors' (a channel's offset, scale or drift), a data "
+                            "problem, not the vehicle" if sensors else ""))
         top = [h for h in self.hypotheses[:4]]
         lines.append("best hypotheses: " + "; ".join(
             f"{'+'.join(c['cause'] for c in h['causes'])} gain {h['gain']:.3f} score {h['score']:.3g}" for h in top))

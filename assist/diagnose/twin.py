@@ -80,7 +80,8 @@ def twin(report: DiagnosisReport, spread: float = 1.0) -> dict[str, Any]:
             key = f"sensor_bias:{closure.equation.split(':', 1)[1]}"
         else:
             not_reproduced.append(f"{term['name']} ({term['term']}, {closure.equation}, coefficient {term['coefficient']}): "
-                                  "the environments have no sensor scale factor")
+                                  + ("the environments have no sensor scale factor" if closure.feature == "scale" else
+                                     "the environments have no sensor drift (a drift belongs to one ride's log)"))
             continue
         if sd is None or not math.isfinite(sd):
             notes.append(f"{term['name']}: no finite uncertainty, kept fixed at {c:.6g}")
