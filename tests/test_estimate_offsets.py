@@ -226,3 +226,16 @@ def test_the_cli_says_which_offsets_drift(drift_log, tmp_path, capsys):
     assert "yaw_rate" in note[0] and "drifting" in note[0]
     assert js["sensor_offsets"]["ay"]["drift"]["unit"] == "(m/s^2)/s"
     assert "drifting" in capsys.readouterr().out
+
+
+def test_a_drift_reported_but_not_used_is_not_removed(offset_log):
+    """Constant offsets: the drifting filter is not used, its drifts are reported beside the constant offsets
+    (``used: False``), and only the constants are taken off the log: the corrected log is the log minus each
+    removed constant, exactly."""
+    got = estimate(offset_log, "adaptive", offsets="all")
+    offs = got.info["offsets"]
+    assert all(e["drift"]["used"] is False for e in offs.values())
+    table = {c: {**e, "removed": True} for c, e in offs.items()}
+    fixed = remove_offsets(offset_log, table)
+    for c, e in offs.items():
+        np.testing.assert_array_equal(fixed[c], offset_log[c] - e["value"])

@@ -756,6 +756,12 @@ def offset_channels(offsets: Sequence[str] | str) -> tuple[str, ...]:
     return out
 
 
+def _drift_used(entry: dict[str, Any]) -> bool:
+    """Whether an offset table entry's drift is part of its offset: an entry of a drifting filter
+    (:meth:`JointEKF.offset_table`), unless marked ``"used": False`` (a drift reported beside a constant offset)."""
+    return "drift" in entry and entry["drift"].get("used", True)
+
+
 def remove_offsets(log, table: dict[str, dict[str, Any]]):
     """``log`` with each offset of ``table`` (:meth:`JointEKF.offset_table`) marked ``removed`` subtracted from
     its channel, with its ``drift`` where the table holds one (the line ``value + drift (t - t_ref_s)``; a new
@@ -763,7 +769,7 @@ def remove_offsets(log, table: dict[str, dict[str, Any]]):
     from ptw_env.logs import RideLog
 
     t = np.asarray(log.t, dtype=float)
-    drop = {c: e["value"] + (e["drift"]["value"] * (t - e["drift"]["t_ref_s"]) if "drift" in e else 0.0)
+    drop = {c: e["value"] + (e["drift"]["value"] * (t - e["drift"]["t_ref_s"]) if _drift_used(e) else 0.0)
             for c, e in table.items() if e.get("removed")}
     if not drop:
         return log
@@ -867,7 +873,7 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
         # an offset is removed only where the data determine it (or its drift) and the model with the offsets
         # explains the log: otherwise the "offsets" are what a model error leaves in the channels, and removing
         # them is a guess
-        table = {c: {**e, "removed": bool((e["significant"] or e.get("drift", {}).get("significant", False))
+        table = {c: {**e, "removed": bool((e["significant"] or (_drift_used(e) and e["drift"]["significant"]))
                                           and ekf.explains)}
                  for c, e in _drift_reported(ekf.offset_table(), drifts).items()}
         if x_hat is not None and any(e["removed"] for e in table.values()):
