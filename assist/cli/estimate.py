@@ -22,7 +22,7 @@ from ptw_env.logs import sidecar_noise_pct
 METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
 
 
-def _offsets_option(text: str) -> tuple[str, ...]:
+def offsets_option(text: str) -> tuple[str, ...]:
     """``--offsets``: ``all``, ``none`` or a comma-separated list of channels
     (:func:`assist.estimation.identification.offset_channels` checks them)."""
     from assist.estimation.identification import IdentificationError, offset_channels
@@ -35,12 +35,13 @@ def _offsets_option(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(f"expected all, none or a list; {exc}") from None
 
 
-def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None], method: str) -> list[str]:
+def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None], method: str,
+                 before: str = "the estimate") -> list[str]:
     """The notes ``estimate`` prints for the sensor offsets it estimated (``info["offsets"]`` and
     ``info["offset_filter_nis"]`` of :func:`assist.estimation.identification.estimate`): those removed (as
     constants, or as lines over the log where they drift), those found but kept (the filter's model does not
     explain the log even with them: its worst channels named), those estimated jointly (``ukf``), and drifts
-    read but not used."""
+    read but not used. ``before``: what runs on the corrected log (``risk``: the warning)."""
     from assist.estimation.identification import NIS_EXPLAINED, OFFSET_SIGNIFICANCE
 
     def drifting(e: dict) -> bool:
@@ -64,7 +65,7 @@ def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None
     removed = [(c, e) for c, e in sig if e.get("removed")]
     if removed:
         bank = "--road-bank" if method == "adaptive" else "--method adaptive --road-bank"
-        return [f"sensor offset(s) {beyond} removed from the log before the estimate{how}: {fmt(removed)} (the filter "
+        return [f"sensor offset(s) {beyond} removed from the log before {before}{how}: {fmt(removed)} (the filter "
                 f"with them explains every channel: mean squared innovation at most {NIS_EXPLAINED:g} times its "
                 f"predicted variance; a road bank the model lacks reads much the same at a steady speed: if the road "
                 f"is banked, give {bank})"]
@@ -73,6 +74,15 @@ def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None
             "the log even with them (mean normalised innovation " + ", ".join(f"{c} {v:.1f}" for v, c in worst)
             + f"; at most {NIS_EXPLAINED:g} when it does), so they would stand in for a model error: "
               "'ptw-assist diagnose' says which part of the model misses"]
+
+
+def filter_sensors(pct: float | None, vehicle: Any):
+    """The sensor noise the identification filters assume on a log (``estimate``, and the offsets' correction of
+    ``risk``): ``pct`` percent of the vehicle's channel ranges when the user or the sidecar gives a noise level,
+    else the reference sensors (:class:`ptw_env.sensors.SensorConfig`)."""
+    from ptw_env.sensors import SensorConfig
+
+    return SensorConfig.from_percent(pct, vehicle=vehicle) if pct is not None else SensorConfig()
 
 
 def _noise_pct(a: argparse.Namespace, meta: dict) -> float | None:
@@ -140,7 +150,7 @@ def _build(p: argparse.ArgumentParser):
                         "(default 0: level); an unknown bank biases the stiffness estimate")
     p.add_argument("--tau-a", type=number(0, 1e6, unit="s", lo_open=True), default=None, metavar="S",
                    help="paper's law: adaptation time constant [s] (default 10)")
-    p.add_argument("--offsets", type=_offsets_option, default="all", metavar="CHANNELS",
+    p.add_argument("--offsets", type=offsets_option, default="all", metavar="CHANNELS",
                    help="sensor offsets estimated as nuisance parameters (joint EKF with the states and stiffness; "
                         "for the other methods run first: each offset beyond 3 of its standard deviations is removed "
                         "from the log before the method runs, if the filter with the offsets explains every channel, "
@@ -154,7 +164,6 @@ def _build(p: argparse.ArgumentParser):
 
     def run(a: argparse.Namespace) -> int:
         from ptw_env.logs import read_log, ridden_part, without_clipped
-        from ptw_env.sensors import SensorConfig
 
         from assist.estimation.adaptive_design import AdaptiveDesignOptions, design_for_vehicle
         from assist.estimation.adaptive_observer import AdaptiveObserver
@@ -192,7 +201,7 @@ def _build(p: argparse.ArgumentParser):
             raise CLIError("--road-bank applies to --method adaptive only")
         obs = AdaptiveObserver(design, law=a.law, tau_a=10.0 if a.tau_a is None else a.tau_a,
                                parametrisation=a.parametrisation, road_bank=a.road_bank)
-        sensors = SensorConfig.from_percent(pct, vehicle=vehicle) if pct is not None else SensorConfig()
+        sensors = filter_sensors(pct, vehicle)
         method = "ukf" if a.method == "ekf" else a.method
         try:
             res = estimate(log, method, sensors=sensors, observer=obs, model=model, offsets=a.offsets)

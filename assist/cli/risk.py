@@ -7,7 +7,12 @@ road ahead is previewed from it, otherwise only the curve being ridden is
 known. ``--json`` holds ``{"mu_hat_final", "warnings": [{"t", "level",
 "reason", "until"}], ...}``. A simulated log with truth columns also gets
 the true friction and the true saturation instants (``|F_ss| >= 0.95 Fmax``)
-in the summary and the figure; the assessment itself never reads them.
+in the summary and the figure; the assessment itself never reads them. Before the
+warning runs, readings at a sensor's limit are set aside
+(:func:`ptw_env.logs.without_clipped`) and the sensor offsets and drifts the data
+determine are removed where the model with them explains the log
+(:func:`assist.estimation.identification.correct_offsets`, ``--offsets``), each said in
+a note: a yaw-gyro offset would otherwise read as a road bank.
 """
 
 from __future__ import annotations
@@ -15,6 +20,8 @@ from __future__ import annotations
 import argparse
 
 from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, command, number, vehicle_for_log, add_vehicle_option, emit
+
+from assist.cli.estimate import filter_sensors, offset_notes, offsets_option
 
 
 @command(
@@ -36,6 +43,11 @@ def _build(p: argparse.ArgumentParser):
                    help="bank (cross-fall) of the road: 'auto' (default) estimates it on line from the lateral "
                         "acceleration and the yaw rate on straights; a number in rad fixes it (e.g. from "
                         "'ptw-assist diagnose'; 0: level)")
+    p.add_argument("--offsets", type=offsets_option, default="all", metavar="CHANNELS",
+                   help="sensor offsets (and their linear drifts) estimated first, as 'ptw-assist estimate' does, "
+                        "and removed from the log where the filter with them explains it: all (default: delta, "
+                        "yaw_rate, roll_rate, ay), none, or a comma-separated list (a gyro offset would otherwise "
+                        "read as a road bank)")
     p.add_argument("--plot", default=None, metavar="OUT.png", help="timeline figure")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
@@ -65,6 +77,18 @@ def _build(p: argparse.ArgumentParser):
             est = default_estimator(pct, dt, vehicle, np.asarray(log.columns["vx"], dtype=float))
         except ValueError as exc:
             raise CLIError(f"{a.log}: the adaptive observer cannot be designed for this log ({exc})") from None
+        if a.offsets:  # sensor offsets and drifts as nuisance parameters, as estimate does (issue 19)
+            from assist.estimation.identification import correct_offsets
+
+            known = 0.0 if a.road_bank == "auto" else float(a.road_bank)  # a known bank in the filter's plant
+            given = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)  # as estimate's filter
+            fixed, offsets, nis, error = correct_offsets(log, a.offsets, sensors=filter_sensors(given, vehicle),
+                                                         model=est.design.model, road_bank=known)
+            if error is not None:
+                trimmed = trimmed + [f"sensor offsets not estimated ({error}): the warning runs on the log as it is"]
+            else:
+                log = fixed
+                trimmed = trimmed + offset_notes(offsets, nis, "adaptive", before="the warning")
         pipe = RiskPipeline(est, RiskMonitor(cfg, vehicle=vehicle), road_bank=a.road_bank)
         if pipe.bank_estimate is not None:
             pipe.bank_estimate.record = True  # the estimates, for the report
@@ -76,6 +100,9 @@ def _build(p: argparse.ArgumentParser):
         js["observer_speed_range"] = [est.design.model.vmin, est.design.model.vmax]
         js["noise_pct_assumed"] = pct
         js["road_bank_rad"] = a.road_bank
+        if a.offsets and error is None:
+            js["sensor_offsets"] = offsets
+            js["offset_filter_nis"] = nis
         if banks:
             js["road_bank_estimate_rad"] = banks
         last = res.assessments[-1]

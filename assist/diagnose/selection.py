@@ -61,7 +61,6 @@ rest is the speed channel's error and the initial-state fit.)
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 

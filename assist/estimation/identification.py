@@ -809,6 +809,35 @@ def _drift_reported(table: dict[str, dict[str, Any]], drifts: dict[str, dict[str
     return out
 
 
+def correct_offsets(log, offsets: Sequence[str] | str = "all", *, sensors: SensorConfig | None = None,
+                    model: LPVModel | None = None, road_bank: float = 0.0):
+    """The offsets' correction every command that reads a log runs first (``estimate``, ``risk``; module
+    docstring): the joint EKF with the ``offsets`` channels' constant offsets, and beside it the same filter with
+    drifting ones (:func:`_with_drift`); each offset (or line) that stands out of its standard deviation by
+    :data:`OFFSET_SIGNIFICANCE` is removed, **only where the filter used explains the log**
+    (:attr:`JointEKF.explains`).
+
+    Returns ``(log_corrected, table, nis, error)``: the log with the removed offsets taken off (``log`` itself
+    when none is), the offset table (:meth:`JointEKF.offset_table`, each entry with ``removed`` and, where a
+    drift was estimated, ``drift`` with ``used``), the filter's mean normalised innovations per channel
+    (:attr:`JointEKF.nis_`), and ``None``; or, when the filter diverges, ``(log, None, None, why)``. Bad
+    arguments raise :class:`IdentificationError`.
+    """
+    ekf = JointEKF(sensors=sensors, model=model, offsets=offset_channels(offsets), road_bank=road_bank)
+    try:
+        ekf.fit(log)
+    except IdentificationError as exc:
+        return log, None, None, str(exc)
+    ekf, drifts = _with_drift(ekf, log)
+    # an offset is removed only where the data determine it (or its drift) and the model with the offsets
+    # explains the log: otherwise the "offsets" are what a model error leaves in the channels, and removing
+    # them is a guess
+    table = {c: {**e, "removed": bool((e["significant"] or (_drift_used(e) and e["drift"]["significant"]))
+                                      and ekf.explains)}
+             for c, e in _drift_reported(ekf.offset_table(), drifts).items()}
+    return remove_offsets(log, table), table, dict(ekf.nis_), None
+
+
 # --------------------------------------------------------------------------- one entry point
 def _same_model(a: LPVModel, b: LPVModel) -> bool:
     return (a.vmin, a.vmax) == (b.vmin, b.vmax) and \
@@ -862,27 +891,18 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
         table = {c: {**e, "removed": False} for c, e in _drift_reported(res.info["offsets"], drifts).items()}
         return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": dict(ekf.nis_)})
     if chans:
-        ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank)  # bad arguments: an error
-        try:
-            ekf.fit(log)
-        except IdentificationError as exc:  # the filter diverged: no offsets, the method runs on the log as it is
+        fixed, table, nis, error = correct_offsets(log, chans, sensors=sensors, model=model, road_bank=bank)
+        if error is not None:  # the filter diverged: no offsets, the method runs on the log as it is
             res = estimate(log, method, sensors=sensors, observer=observer, x_hat=x_hat, ls_options=ls_options,
                            model=model)
-            return dataclasses.replace(res, info={**res.info, "offsets_error": str(exc)})
-        ekf, drifts = _with_drift(ekf, log)
-        # an offset is removed only where the data determine it (or its drift) and the model with the offsets
-        # explains the log: otherwise the "offsets" are what a model error leaves in the channels, and removing
-        # them is a guess
-        table = {c: {**e, "removed": bool((e["significant"] or (_drift_used(e) and e["drift"]["significant"]))
-                                          and ekf.explains)}
-                 for c, e in _drift_reported(ekf.offset_table(), drifts).items()}
-        if x_hat is not None and any(e["removed"] for e in table.values()):
+            return dataclasses.replace(res, info={**res.info, "offsets_error": error})
+        if x_hat is not None and fixed is not log:
             raise IdentificationError("x_hat was estimated on the log before its sensor offsets were removed: "
                                       "pass offsets=() with it, or leave x_hat out (the observer then runs on the "
                                       "corrected log)")
-        res = estimate(remove_offsets(log, table), method, sensors=sensors, observer=observer, x_hat=x_hat,
-                       ls_options=ls_options, model=model)
-        return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": dict(ekf.nis_)})
+        res = estimate(fixed, method, sensors=sensors, observer=observer, x_hat=x_hat, ls_options=ls_options,
+                       model=model)
+        return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": nis})
 
     if meth == "adaptive":
         obs = default_observer()
