@@ -20,7 +20,7 @@ import assist.cli.risk  # noqa: F401
 from assist.cli import main
 from assist.diagnose import diagnose
 from conftest import DATA
-from ptw_env.logs import CLIP_CHANNELS, RideLog, clipped_samples, read_log, without_clipped, write_log
+from ptw_env.logs import CLIP_CHANNELS, CLIP_MIN_RUN, RideLog, clipped_samples, read_log, without_clipped, write_log
 from ptw_env.ride import ride_scenario
 from ptw_env.scenarios import make_scenario
 from ptw_env.sensors import SensorConfig
@@ -121,3 +121,16 @@ def test_estimate_and_risk_set_clipped_readings_aside_and_say_so(ride, tmp_path,
 def test_without_clipped_keeps_the_log_when_nothing_is_clipped(ride):
     same, notes = without_clipped(ride)
     assert same is ride and notes == []
+
+
+def test_a_rider_at_the_torque_limit_is_a_limit_too():
+    """The simulated rider's torque is limited (``ptw_env.rider``, 60 N m on the reference scooter): on a steady
+    turn whose tires saturate (mu_peak 0.6, seed 2) the rider holds it there for a few samples, and the check
+    finds exactly those, at the rider's limit (a limit of a sensor or an actuator: either way the replay cannot
+    take the torque beyond it as known)."""
+    log = ride_scenario("constant_radius", seed=2, effects={"tire_saturation": {"mu_peak": 0.6}}).log
+    found = clipped_samples(log)
+    assert set(found) == {"tau"}
+    mask, limit = found["tau"]
+    assert abs(limit) == 60.0 and mask.sum() >= CLIP_MIN_RUN
+    np.testing.assert_array_equal(mask, np.abs(log["tau"]) == 60.0)
