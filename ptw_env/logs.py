@@ -777,6 +777,11 @@ CLIP_MIN_RUN = 3
 #: exactly: a noisy sensor never repeats a reading, so a flat top there is the sensor's limit; a channel that is
 #: often flat anyway (a quantised encoder, a held or noise-free signal) cannot show a clip by its shape.
 CLIP_REPEAT_MAX = 0.05
+#: A channel is checked for clipping only when its readings between the extremes are noisy: the median of
+#: their second differences at least this fraction of the median step (white noise gives about 1.7; a smooth,
+#: noise-free signal sampled fast far less, 0.13-0.22 on the disclosed noise-free log), so that a noise-free
+#: signal that ramps to a value and holds it is not taken for a clip.
+CLIP_NOISE_RATIO = 0.5
 #: Channels checked for clipping: the known ones but time and the speed (a GPS reading is held by design).
 CLIP_CHANNELS: tuple[str, ...] = tuple(c for c in KNOWN_COLUMNS if c not in ("t", "vx"))
 
@@ -792,9 +797,10 @@ def clipped_samples(log: RideLog) -> dict[str, tuple[np.ndarray, float]]:
     * at least :data:`CLIP_MIN_RUN` consecutive readings equal the column's maximum (or minimum), and that value
       lies on its own side of zero (an upper limit above 0, a lower one below: a signal resting at 0 is not
       clipped);
-    * the column's other readings seldom repeat (at most :data:`CLIP_REPEAT_MAX` of consecutive pairs): in a
-      noisy channel equal readings are the limit, in a quantised or noise-free one they are common and prove
-      nothing (such a channel is not judged);
+    * the column's other readings are noisy: they seldom repeat (at most :data:`CLIP_REPEAT_MAX` of
+      consecutive pairs) and their second differences are as large as noise makes them
+      (:data:`CLIP_NOISE_RATIO`): in a noisy channel equal readings are the limit; in a quantised, held or
+      noise-free one they are common or expected and prove nothing (such a channel is not judged);
     * the signal arrives at or leaves the flat top at speed: the larger of the steps into and out of the run is
       at least half the column's median step. A signal that settles at a smooth maximum slows to a stop
       before it; a clipped one is cut while it is still moving.
@@ -822,6 +828,9 @@ def clipped_samples(log: RideLog) -> dict[str, tuple[np.ndarray, float]]:
         if np.mean(step == 0.0) > CLIP_REPEAT_MAX:
             continue  # quantised, held or noise-free: a flat top proves nothing
         typical = float(np.median(step[step > 0.0]))
+        triple = others[2:] & others[1:-1] & others[:-2]
+        if not triple.any() or float(np.median(np.abs(np.diff(x, 2))[triple])) < CLIP_NOISE_RATIO * typical:
+            continue  # a smooth, noise-free signal: a value it ramps to and holds is not a limit
         mask = np.zeros(x.size, dtype=bool)
         reads = {}
         for limit, side in ((hi, 1.0), (lo, -1.0)):
@@ -859,17 +868,19 @@ def without_clipped(log: RideLog) -> tuple[RideLog, list[str]]:
         return log, []
     cols = dict(log.columns)
     notes = []
-    for c, (mask, limit) in clips.items():
+    for c, (mask, _) in clips.items():
+        x = np.asarray(log[c], dtype=float)
+        sides = ", ".join(f"{v:g} {COLUMN_UNITS.get(c, '')} at {int(np.sum(x[mask] == v))} sample(s)"
+                          for v in sorted(set(x[mask].tolist()), reverse=True))
         cols[c] = np.where(mask, np.nan, cols[c])
         k = int(np.flatnonzero(mask)[0])
         what, use = (("a torque sensor's or the actuator's (or rider's) limit: which cannot be told, so the torque "
                       "there is not taken as known", "the windows and stretches holding them are left out as for a "
                       "torque dropout") if c == "tau" else
                      ("a clipped sensor", "they are left out of every comparison"))
-        notes.append(f"column '{c}' reads its limit {limit:g} {COLUMN_UNITS.get(c, '')} at {int(mask.sum())} "
-                     f"sample(s) ({100.0 * mask.mean():.1f} %, the first at {log.where(k)}): {what}, not a vehicle "
-                     f"effect (flat tops at the column's extreme in a channel that otherwise never repeats a "
-                     f"reading); those readings are set as dropouts and {use}")
+        notes.append(f"column '{c}' reads its limit {sides} ({100.0 * mask.mean():.1f} % of the log, the first at "
+                     f"{log.where(k)}): {what}, not a vehicle effect (flat tops at the column's extreme in a noisy "
+                     f"channel that seldom repeats a reading); those readings are set as dropouts and {use}")
     part = RideLog(t=log.t, columns=cols, meta=log.meta, path=log.path, ignored_columns=log.ignored_columns,
                    lines=log.lines)
     return part, notes

@@ -79,12 +79,20 @@ def test_clean_logs_and_flat_signals_are_not_clipped(ride):
     # noise-free ride: smooth maxima settle (no step into a flat top), held or quantised channels repeat anyway
     quiet = ride_scenario("constant_radius", seed=2, sensors=SensorConfig.noiseless()).log
     assert clipped_samples(quiet) == {}
-    # a signal resting at zero between pulses is not clipped at zero; a held input in a noise-free log is not judged
-    t = np.arange(1000) * 0.01
-    tau = np.where((t > 2) & (t < 4), 5.0, 0.0)
-    cols = {c: np.sin(t + i) * 0.1 + 0.001 * np.random.default_rng(i).standard_normal(t.size)
+    # a noisy signal resting exactly at zero between pulses is not clipped at zero (its own side of zero)
+    t = np.arange(2000) * 0.01
+    rng = np.random.default_rng(3)
+    pulses = np.where(np.sin(t) > 0.2, np.sin(t) + 0.02 * rng.standard_normal(t.size), 0.0)
+    cols = {c: np.sin(t + i) * 0.1 + 0.001 * rng.standard_normal(t.size)
             for i, c in enumerate(("delta", "delta_rate", "yaw_rate", "roll_rate", "ay"))}
-    log = RideLog(t=t, columns={"t": t, "tau": tau, "vx": np.full_like(t, 10.0), **cols})
+    log = RideLog(t=t, columns={"t": t, "tau": pulses, "vx": np.full_like(t, 10.0), **cols})
+    assert clipped_samples(log) == {}
+    # the same pulses clipped at 0.8: found (the zero rule alone keeps the rest out)
+    clipped = RideLog(t=t, columns={**log.columns, "tau": np.minimum(pulses, 0.8)})
+    assert set(clipped_samples(clipped)) == {"tau"}
+    # a noise-free signal that ramps to a value and holds it: not a clip (not judged: no noise)
+    hold = np.clip(np.minimum(3.0 * t, 30.0 - 3.0 * t), 0.0, 5.0) + 0.5
+    log = RideLog(t=t, columns={**log.columns, "tau": hold, "yaw_rate": 0.04 * hold})
     assert clipped_samples(log) == {}
 
 

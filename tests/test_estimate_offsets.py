@@ -260,3 +260,14 @@ def test_risk_removes_a_yaw_gyro_offset_before_the_warning(tmp_path, capsys):
     assert yaw["removed"] and abs(yaw["value"] - 0.01) <= 0.05 * 0.01, yaw
     assert any("removed from the log before the warning" in n for n in ja["notes"])
     assert "sensor_offsets" not in jb
+
+
+def test_correct_offsets_with_no_channel_leaves_the_log():
+    from conftest import DATA
+    from ptw_env.logs import read_log
+
+    from assist.estimation.identification import correct_offsets
+
+    log = read_log(DATA / "nominal_urban.csv")
+    fixed, table, nis, error = correct_offsets(log, ())
+    assert fixed is log and table == {} and error is None and set(nis) >= set(OFFSET_CHANNELS)

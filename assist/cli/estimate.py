@@ -44,36 +44,42 @@ def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None
     read but not used. ``before``: what runs on the corrected log (``risk``: the warning)."""
     from assist.estimation.identification import NIS_EXPLAINED, OFFSET_SIGNIFICANCE
 
-    def drifting(e: dict) -> bool:
-        return bool(e.get("drift", {}).get("significant"))
+    def used(e: dict) -> bool:  # a drift that is part of the offset removed or estimated
+        return bool(e.get("drift", {}).get("used")) and bool(e["drift"]["significant"])
 
-    def fmt(items):
+    def fmt(items, drift: bool = True):
         return ", ".join(f"{c} {e['value']:+.4g} {e['unit']} (std {e['std']:.2g}"
                          + (f"; drifting {e['drift']['value']:+.3g} {e['drift']['unit']}, std {e['drift']['std']:.2g}"
-                            if drifting(e) else "") + ")" for c, e in items)
+                            if drift and used(e) else "") + ")" for c, e in items)
 
-    sig = [(c, e) for c, e in offsets.items() if e["significant"] or drifting(e)]
+    unused = [(c, e) for c, e in offsets.items()
+              if "drift" in e and not e["drift"].get("used") and e["drift"]["significant"]]
+    extra = ([f"linear drift(s) beyond {OFFSET_SIGNIFICANCE:g} standard deviations read but not used: "
+              + ", ".join(f"{c} {e['drift']['value']:+.3g} {e['drift']['unit']} (std {e['drift']['std']:.2g})"
+                          for c, e in unused)
+              + " (the filter with drifting offsets does not explain the log either, so no line is taken off)"]
+             if unused else [])
+    sig = [(c, e) for c, e in offsets.items() if e["significant"] or used(e)]
     if not sig:
-        return []
+        return extra
     beyond = f"beyond {OFFSET_SIGNIFICANCE:g} standard deviations"
-    used = any(e.get("drift", {}).get("used") for _, e in sig)
     how = (" (each a line over the log: a constant offset and a linear drift, the filter with drifting offsets "
-           "explaining the log)" if used else "")
+           "explaining the log)" if any(used(e) for _, e in sig) else "")
     if method == "ukf":
         return [f"sensor offset(s) {beyond}, estimated jointly with the states and stiffness{how}: {fmt(sig)} (an "
-                "offset, or a model error it stands in for: 'ptw-assist diagnose' tells them apart)"]
+                "offset, or a model error it stands in for: 'ptw-assist diagnose' tells them apart)"] + extra
     removed = [(c, e) for c, e in sig if e.get("removed")]
     if removed:
         bank = "--road-bank" if method == "adaptive" else "--method adaptive --road-bank"
         return [f"sensor offset(s) {beyond} removed from the log before {before}{how}: {fmt(removed)} (the filter "
                 f"with them explains every channel: mean squared innovation at most {NIS_EXPLAINED:g} times its "
                 f"predicted variance; a road bank the model lacks reads much the same at a steady speed: if the road "
-                f"is banked, give {bank})"]
+                f"is banked, give {bank})"] + extra
     worst = sorted(((v, c) for c, v in nis.items() if v is not None), reverse=True)[:2]
-    return [f"sensor offset(s) or drift(s) {beyond} found but not removed: {fmt(sig)}; the model does not explain "
+    return [f"sensor offset(s) {beyond} found but not removed: {fmt(sig)}; the model does not explain "
             "the log even with them (mean normalised innovation " + ", ".join(f"{c} {v:.1f}" for v, c in worst)
             + f"; at most {NIS_EXPLAINED:g} when it does), so they would stand in for a model error: "
-              "'ptw-assist diagnose' says which part of the model misses"]
+              "'ptw-assist diagnose' says which part of the model misses"] + extra
 
 
 def filter_sensors(pct: float | None, vehicle: Any):

@@ -47,7 +47,8 @@ def _build(p: argparse.ArgumentParser):
                    help="sensor offsets (and their linear drifts) estimated first, as 'ptw-assist estimate' does, "
                         "and removed from the log where the filter with them explains it: all (default: delta, "
                         "yaw_rate, roll_rate, ay), none, or a comma-separated list (a gyro offset would otherwise "
-                        "read as a road bank)")
+                        "read as a road bank; with --road-bank auto the filter assumes a level road, so on a banked "
+                        "road it may read the bank as offsets and take it off: give the bank if it is known)")
     p.add_argument("--plot", default=None, metavar="OUT.png", help="timeline figure")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
@@ -70,8 +71,8 @@ def _build(p: argparse.ArgumentParser):
         trimmed = clipped + trimmed
         vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         dt = float(log.dt)
-        pct = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)
-        pct = DEFAULT_NOISE_PCT if pct is None else pct
+        given = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)  # None: not stated
+        pct = DEFAULT_NOISE_PCT if given is None else given
         cfg = RiskConfig() if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)
         try:
             est = default_estimator(pct, dt, vehicle, np.asarray(log.columns["vx"], dtype=float))
@@ -81,7 +82,6 @@ def _build(p: argparse.ArgumentParser):
             from assist.estimation.identification import correct_offsets
 
             known = 0.0 if a.road_bank == "auto" else float(a.road_bank)  # a known bank in the filter's plant
-            given = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)  # as estimate's filter
             fixed, offsets, nis, error = correct_offsets(log, a.offsets, sensors=filter_sensors(given, vehicle),
                                                          model=est.design.model, road_bank=known)
             if error is not None:

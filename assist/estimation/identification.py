@@ -106,6 +106,16 @@ innovation squared ``e^2 / S`` over the log's second half (1 for a consistent
 filter) at most :data:`NIS_EXPLAINED`. Where it does not, the "offsets" are what
 a model error leaves in the channels: they are reported, not removed.
 
+Drifting offsets (``drift=True``): each offset also gets a constant rate,
+``z = [x, s, b, d]``, ``b' = d``, ``d' = 0`` (a line over the log, the usual
+model of a MEMS sensor's bias warming up over tens of seconds); the transition
+of ``(b, d)`` over a step ``dt`` is ``[[1, dt], [0, 1]]`` exactly, and the
+prior of ``d`` is the offset's prior divided by the log's duration (a drift
+moving the offset by its prior over the log). :func:`correct_offsets` runs this
+filter beside the constant one and uses it when a drift stands out by
+:data:`OFFSET_SIGNIFICANCE` and it explains the log; the offsets removed are
+then lines ``b(t) = b(T) + d (t - T)``.
+
 References
 ----------
 .. [1] M. Fouka, L. Nehaoua, H. Arioui, "Motorcycle state estimation and tire
@@ -823,11 +833,14 @@ def correct_offsets(log, offsets: Sequence[str] | str = "all", *, sensors: Senso
     (:attr:`JointEKF.nis_`), and ``None``; or, when the filter diverges, ``(log, None, None, why)``. Bad
     arguments raise :class:`IdentificationError`.
     """
-    ekf = JointEKF(sensors=sensors, model=model, offsets=offset_channels(offsets), road_bank=road_bank)
+    chans = offset_channels(offsets)
+    ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=road_bank)
     try:
         ekf.fit(log)
     except IdentificationError as exc:
         return log, None, None, str(exc)
+    if not chans:  # nothing to correct: the filter's innovations alone
+        return log, {}, dict(ekf.nis_), None
     ekf, drifts = _with_drift(ekf, log)
     # an offset is removed only where the data determine it (or its drift) and the model with the offsets
     # explains the log: otherwise the "offsets" are what a model error leaves in the channels, and removing
