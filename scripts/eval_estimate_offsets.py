@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT))
 
 import assist.cli.estimate  # noqa: E402,F401  (registers the subcommand)
 from assist.cli import main as cli  # noqa: E402
-from assist.estimation.identification import OFFSET_CHANNELS  # noqa: E402
+from assist.estimation.identification import OFFSET_CHANNELS, OFFSET_SIGNIFICANCE  # noqa: E402
 from ptw_env.logs import RideLog, write_log  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
 from ptw_env.scenarios import make_scenario  # noqa: E402
@@ -105,7 +105,8 @@ def main() -> None:
                        "clean_found": clean["sensor_offsets"],
                        "scale_clean": ratios(clean), "scale_offsets_removed": ratios(got),
                        "scale_offsets_kept": ratios(bare),
-                       "drift_start": b0, "drift_end": b1, "drift_rate": rate, "drift_found": drifted["sensor_offsets"],
+                       "drift_start": b0, "drift_end": b1, "drift_rate": rate, "span_s": span_t,
+                       "drift_found": drifted["sensor_offsets"],
                        "scale_drift_removed": ratios(drifted)}
                 sim.append(row)
                 for c in OFFSET_CHANNELS:
@@ -130,18 +131,21 @@ def main() -> None:
           f"clean log's: with the offsets removed within {100 * max(dev_rm):.2f} % (median {100 * np.median(dev_rm):.2f} %), "
           f"kept {100 * min(dev_kept):.1f}-{100 * max(dev_kept):.1f} % off")
     # drift: the error of the rate found, as the change it makes over the ride, in the channel's span
-    span_s = 60.0
-    derr = [abs(r["drift_found"][c]["drift"]["value"] - r["drift_rate"][c]) * span_s / SPAN[c]
-            for r in sim for c in OFFSET_CHANNELS]
-    n_used = sum(r["drift_found"][c]["drift"]["used"] for r in sim for c in OFFSET_CHANNELS)
+    found = [(r, c, r["drift_found"][c].get("drift")) for r in sim for c in OFFSET_CHANNELS]
+    derr = [abs(d["value"] - r["drift_rate"][c]) * r["span_s"] / SPAN[c] for r, c, d in found if d]
+    sig = [abs(d["value"] / r["drift_rate"][c] - 1.0) for r, c, d in found if d and d["significant"]]
+    rides_used = sum(any(bool(e.get("drift", {}).get("used")) for e in r["drift_found"].values()) for r in sim)
     n_drm = sum(r["drift_found"][c]["removed"] for r in sim for c in OFFSET_CHANNELS)
-    false_used = sum(e["drift"]["used"] for r in sim for key in ("found", "clean_found") for e in r[key].values())
+    false_used = sum(bool(e.get("drift", {}).get("used")) for r in sim for key in ("found", "clean_found")
+                     for e in r[key].values())
     dev_dr = [abs(a / b - 1) for r in sim for a, b in zip(r["scale_drift_removed"], r["scale_clean"])]
-    print(f"summary (drift): rates found within {100 * max(derr):.2f} % of the span per {span_s:g} s (median "
-          f"{100 * np.median(derr):.2f} %); the drifting filter used on {n_used} of {len(derr)} channels and lines "
-          f"removed on {n_drm}; a drift used on the clean and constant-offset logs: {false_used} of {2 * len(derr)}; "
-          f"stiffness scale vs the clean log's with the lines removed within {100 * max(dev_dr):.2f} % (median "
-          f"{100 * np.median(dev_dr):.2f} %)")
+    print(f"summary (drift; {len(SEEDS)} draws of {len(OFFSET_CHANNELS)} lines, each on {len(RIDES)} rides): rates "
+          f"within {100 * max(derr):.2f} % of the channel's span over the ride (median {100 * np.median(derr):.2f} %); "
+          f"{len(sig)} of {len(found)} beyond {OFFSET_SIGNIFICANCE:g} standard deviations, within "
+          f"{100 * max(sig):.1f} % of their rate (median {100 * np.median(sig):.1f} %); the drifting filter used on "
+          f"{rides_used} of {len(sim)} drift rides, lines removed on {n_drm} channels; a drift used on the clean and "
+          f"constant-offset rides' channels: {false_used} of {2 * len(found)}; stiffness scale vs the clean log's "
+          f"with the lines removed within {100 * max(dev_dr):.2f} % (median {100 * np.median(dev_dr):.2f} %)")
 
     print("\ndisclosed logs (shared/data, an independent simulator; truth in the sidecars): error of the front / rear "
           "estimate against the truth with the defaults and with --offsets none; offsets removed")
@@ -176,7 +180,7 @@ def main() -> None:
     n_real_dr = sum(bool(e.get("drift", {}).get("significant")) for r in real for e in r["offsets"].values())
     n_real_used = sum(bool(e.get("drift", {}).get("used")) for r in real for e in r["offsets"].values())
     print(f"summary: {n_real_rm} offsets removed over {len(real)} rides; {n_real_dr} channel drifts beyond "
-          f"3 standard deviations, {n_real_used} used ({time.perf_counter() - t0:.0f} s in all)")
+          f"{OFFSET_SIGNIFICANCE:g} standard deviations, {n_real_used} used ({time.perf_counter() - t0:.0f} s in all)")
     if out is not None:
         out.write_text(json.dumps({"simulated": sim, "disclosed": disclosed, "robot_bicycle": real}, indent=1) + "\n")
 

@@ -145,7 +145,7 @@ def test_a_diverging_offset_filter_leaves_the_estimate_to_run_on_the_log_as_it_i
     import assist.estimation.identification as ident
 
     def diverge(self, log):
-        raise IdentificationError("the EKF diverged at t = 1.00 s (sample 100)")
+        raise ident.FilterDivergence("the EKF diverged at t = 1.00 s (sample 100)")
 
     monkeypatch.setattr(ident.JointEKF, "fit", diverge)
     got = estimate(clean, "adaptive", offsets="all")
@@ -269,5 +269,20 @@ def test_correct_offsets_with_no_channel_leaves_the_log():
     from assist.estimation.identification import correct_offsets
 
     log = read_log(DATA / "nominal_urban.csv")
-    fixed, table, nis, error = correct_offsets(log, ())
-    assert fixed is log and table == {} and error is None and set(nis) >= set(OFFSET_CHANNELS)
+    for nothing in ((), "none"):
+        fixed, table, nis, error = correct_offsets(log, nothing)
+        assert fixed is log and table == {} and nis == {} and error is None
+    for bad in (None, 5, ["delta", 3]):
+        with pytest.raises(IdentificationError, match="offsets must be"):
+            correct_offsets(log, bad)
+
+
+def test_the_offsets_help_states_the_estimators_numbers():
+    """``--offsets``'s help is written out (the parser does not import the estimators): it must say what
+    :mod:`assist.estimation.identification` does."""
+    from assist.cli.offsets import OFFSETS_HELP
+    from assist.estimation.identification import OFFSET_SIGNIFICANCE
+
+    assert f"beyond {OFFSET_SIGNIFICANCE:g} of its standard deviations" in OFFSETS_HELP
+    assert f"at most {NIS_EXPLAINED:g})" in OFFSETS_HELP
+    assert f"(default: {', '.join(OFFSET_CHANNELS)})" in OFFSETS_HELP

@@ -17,84 +17,10 @@ from typing import Any
 import numpy as np
 
 from ptw_env.cli import CLIError, road_bank, check_outputs, NOISE_PCT, command, number, vehicle_for_log, add_vehicle_option, emit
-from ptw_env.logs import sidecar_noise_pct
+
+from assist.cli.offsets import OFFSETS_HELP, filter_sensors, noise_pct_given, offset_error_note, offset_notes, offsets_option
 
 METHOD_CHOICES = ("adaptive", "direct", "inversion", "ukf", "ekf")
-
-
-def offsets_option(text: str) -> tuple[str, ...]:
-    """``--offsets``: ``all``, ``none`` or a comma-separated list of channels
-    (:func:`assist.estimation.identification.offset_channels` checks them)."""
-    from assist.estimation.identification import IdentificationError, offset_channels
-
-    if text == "none":
-        return ()
-    try:
-        return offset_channels("all" if text == "all" else tuple(c.strip() for c in text.split(",")))
-    except IdentificationError as exc:
-        raise argparse.ArgumentTypeError(f"expected all, none or a list; {exc}") from None
-
-
-def offset_notes(offsets: dict[str, dict[str, Any]], nis: dict[str, float | None], method: str,
-                 before: str = "the estimate") -> list[str]:
-    """The notes ``estimate`` prints for the sensor offsets it estimated (``info["offsets"]`` and
-    ``info["offset_filter_nis"]`` of :func:`assist.estimation.identification.estimate`): those removed (as
-    constants, or as lines over the log where they drift), those found but kept (the filter's model does not
-    explain the log even with them: its worst channels named), those estimated jointly (``ukf``), and drifts
-    read but not used. ``before``: what runs on the corrected log (``risk``: the warning)."""
-    from assist.estimation.identification import NIS_EXPLAINED, OFFSET_SIGNIFICANCE
-
-    def used(e: dict) -> bool:  # a drift that is part of the offset removed or estimated
-        return bool(e.get("drift", {}).get("used")) and bool(e["drift"]["significant"])
-
-    def fmt(items, drift: bool = True):
-        return ", ".join(f"{c} {e['value']:+.4g} {e['unit']} (std {e['std']:.2g}"
-                         + (f"; drifting {e['drift']['value']:+.3g} {e['drift']['unit']}, std {e['drift']['std']:.2g}"
-                            if drift and used(e) else "") + ")" for c, e in items)
-
-    unused = [(c, e) for c, e in offsets.items()
-              if "drift" in e and not e["drift"].get("used") and e["drift"]["significant"]]
-    extra = ([f"linear drift(s) beyond {OFFSET_SIGNIFICANCE:g} standard deviations read but not used: "
-              + ", ".join(f"{c} {e['drift']['value']:+.3g} {e['drift']['unit']} (std {e['drift']['std']:.2g})"
-                          for c, e in unused)
-              + " (the filter with drifting offsets does not explain the log either, so no line is taken off)"]
-             if unused else [])
-    sig = [(c, e) for c, e in offsets.items() if e["significant"] or used(e)]
-    if not sig:
-        return extra
-    beyond = f"beyond {OFFSET_SIGNIFICANCE:g} standard deviations"
-    how = (" (each a line over the log: a constant offset and a linear drift, the filter with drifting offsets "
-           "explaining the log)" if any(used(e) for _, e in sig) else "")
-    if method == "ukf":
-        return [f"sensor offset(s) {beyond}, estimated jointly with the states and stiffness{how}: {fmt(sig)} (an "
-                "offset, or a model error it stands in for: 'ptw-assist diagnose' tells them apart)"] + extra
-    removed = [(c, e) for c, e in sig if e.get("removed")]
-    if removed:
-        bank = "--road-bank" if method == "adaptive" else "--method adaptive --road-bank"
-        return [f"sensor offset(s) {beyond} removed from the log before {before}{how}: {fmt(removed)} (the filter "
-                f"with them explains every channel: mean squared innovation at most {NIS_EXPLAINED:g} times its "
-                f"predicted variance; a road bank the model lacks reads much the same at a steady speed: if the road "
-                f"is banked, give {bank})"] + extra
-    worst = sorted(((v, c) for c, v in nis.items() if v is not None), reverse=True)[:2]
-    return [f"sensor offset(s) {beyond} found but not removed: {fmt(sig)}; the model does not explain "
-            "the log even with them (mean normalised innovation " + ", ".join(f"{c} {v:.1f}" for v, c in worst)
-            + f"; at most {NIS_EXPLAINED:g} when it does), so they would stand in for a model error: "
-              "'ptw-assist diagnose' says which part of the model misses"] + extra
-
-
-def filter_sensors(pct: float | None, vehicle: Any):
-    """The sensor noise the identification filters assume on a log (``estimate``, and the offsets' correction of
-    ``risk``): ``pct`` percent of the vehicle's channel ranges when the user or the sidecar gives a noise level,
-    else the reference sensors (:class:`ptw_env.sensors.SensorConfig`)."""
-    from ptw_env.sensors import SensorConfig
-
-    return SensorConfig.from_percent(pct, vehicle=vehicle) if pct is not None else SensorConfig()
-
-
-def _noise_pct(a: argparse.Namespace, meta: dict) -> float | None:
-    if a.noise is not None:
-        return float(a.noise)
-    return sidecar_noise_pct(meta)
 
 
 #: Why the default design is the default (printed and in the JSON as ``design_why``).
@@ -157,19 +83,13 @@ def _build(p: argparse.ArgumentParser):
     p.add_argument("--tau-a", type=number(0, 1e6, unit="s", lo_open=True), default=None, metavar="S",
                    help="paper's law: adaptation time constant [s] (default 10)")
     p.add_argument("--offsets", type=offsets_option, default="all", metavar="CHANNELS",
-                   help="sensor offsets estimated as nuisance parameters (joint EKF with the states and stiffness; "
-                        "for the other methods run first: each offset beyond 3 of its standard deviations is removed "
-                        "from the log before the method runs, if the filter with the offsets explains every channel, "
-                        "mean normalised innovation at most 3; else they are reported, not removed; a second filter with "
-                        "linearly drifting offsets replaces the first where a drift stands out and it explains the log: "
-                        "the offsets are then removed as lines over the log): all (default: "
-                        "delta, yaw_rate, roll_rate, ay), none, or a comma-separated list of those channels")
+                   help=OFFSETS_HELP + " (for the other methods; ukf estimates them jointly)")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
 
     def run(a: argparse.Namespace) -> int:
-        from ptw_env.logs import read_log, ridden_part, without_clipped
+        from ptw_env.logs import read_log, usable_part
 
         from assist.estimation.adaptive_design import AdaptiveDesignOptions, design_for_vehicle
         from assist.estimation.adaptive_observer import AdaptiveObserver
@@ -180,13 +100,11 @@ def _build(p: argparse.ArgumentParser):
         check_outputs(a, "plot", "json")
         if a.tau_a is not None and not (math.isfinite(a.tau_a) and a.tau_a > 0):
             raise CLIError(f"--tau-a: expected a positive time in seconds, got {a.tau_a}")
-        log, clipped = without_clipped(read_log(a.log))  # readings at a sensor's limit: dropouts, said
-        log, trimmed = ridden_part(log)  # standstills and torque dropouts: the longest ridden stretch
-        trimmed = clipped + trimmed
+        log, trimmed = usable_part(read_log(a.log))  # clipped readings, standstills, torque dropouts: said
         vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         why = resolve_design(a)
         dt = float(log.dt)
-        pct = _noise_pct(a, log.meta)
+        pct = noise_pct_given(a.noise, log.meta)
         opts: dict[str, Any] = {"dt": round(dt, 9)}
         if pct is not None:
             opts["noise_pct"] = max(pct, 0.5)
@@ -220,8 +138,7 @@ def _build(p: argparse.ArgumentParser):
             out["offset_filter_nis"] = res.info["offset_filter_nis"]
             trimmed = trimmed + offset_notes(offsets, res.info["offset_filter_nis"], method)
         if "offsets_error" in res.info:
-            trimmed = trimmed + [f"sensor offsets not estimated ({res.info['offsets_error']}): the estimate runs on "
-                                 "the log as it is"]
+            trimmed = trimmed + [offset_error_note(res.info["offsets_error"])]
         out["log"] = str(a.log)
         out["vehicle"] = vehicle.identity()
         out["observer_speed_range"] = [model.vmin, model.vmax]

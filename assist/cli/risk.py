@@ -21,7 +21,7 @@ import argparse
 
 from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, command, number, vehicle_for_log, add_vehicle_option, emit
 
-from assist.cli.estimate import filter_sensors, offset_notes, offsets_option
+from assist.cli.offsets import OFFSETS_HELP, filter_sensors, noise_pct_given, offset_error_note, offset_notes, offsets_option
 
 
 @command(
@@ -44,11 +44,9 @@ def _build(p: argparse.ArgumentParser):
                         "acceleration and the yaw rate on straights; a number in rad fixes it (e.g. from "
                         "'ptw-assist diagnose'; 0: level)")
     p.add_argument("--offsets", type=offsets_option, default="all", metavar="CHANNELS",
-                   help="sensor offsets (and their linear drifts) estimated first, as 'ptw-assist estimate' does, "
-                        "and removed from the log where the filter with them explains it: all (default: delta, "
-                        "yaw_rate, roll_rate, ay), none, or a comma-separated list (a gyro offset would otherwise "
-                        "read as a road bank; with --road-bank auto the filter assumes a level road, so on a banked "
-                        "road it may read the bank as offsets and take it off: give the bank if it is known)")
+                   help=OFFSETS_HELP + " (a gyro offset would otherwise read as a road bank; with --road-bank auto the "
+                                       "filter assumes a level road, so on a banked road it may read the bank as offsets "
+                                       "and take it off: give the bank if it is known)")
     p.add_argument("--plot", default=None, metavar="OUT.png", help="timeline figure")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
@@ -58,7 +56,7 @@ def _build(p: argparse.ArgumentParser):
 
         import numpy as np
 
-        from ptw_env.logs import read_log, ridden_part, without_clipped, sidecar_noise_pct
+        from ptw_env.logs import read_log, usable_part
 
         from assist.risk.evaluation import truth_from_log
         from assist.risk.monitor import RiskConfig, RiskMonitor
@@ -66,12 +64,10 @@ def _build(p: argparse.ArgumentParser):
         from assist.risk.pipeline import RiskPipeline, default_estimator
 
         check_outputs(a, "plot", "json")
-        log, clipped = without_clipped(read_log(a.log))  # readings at a sensor's limit: dropouts, said
-        log, trimmed = ridden_part(log)  # standstills and torque dropouts: the longest ridden stretch
-        trimmed = clipped + trimmed
+        log, trimmed = usable_part(read_log(a.log))  # clipped readings, standstills, torque dropouts: said
         vehicle = vehicle_for_log(a, log)  # --vehicle, else the sidecar's, else the reference scooter
         dt = float(log.dt)
-        given = a.noise if a.noise is not None else sidecar_noise_pct(log.meta)  # None: not stated
+        given = noise_pct_given(a.noise, log.meta)  # None: not stated
         pct = DEFAULT_NOISE_PCT if given is None else given
         cfg = RiskConfig() if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)
         try:
@@ -85,7 +81,7 @@ def _build(p: argparse.ArgumentParser):
             fixed, offsets, nis, error = correct_offsets(log, a.offsets, sensors=filter_sensors(given, vehicle),
                                                          model=est.design.model, road_bank=known)
             if error is not None:
-                trimmed = trimmed + [f"sensor offsets not estimated ({error}): the warning runs on the log as it is"]
+                trimmed = trimmed + [offset_error_note(error, before="the warning")]
             else:
                 log = fixed
                 trimmed = trimmed + offset_notes(offsets, nis, "adaptive", before="the warning")

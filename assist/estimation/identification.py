@@ -130,8 +130,10 @@ interface, sharing the weighted least squares and the log handling.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -166,6 +168,10 @@ OFFSET_SIGNIFICANCE = 3.0
 
 class IdentificationError(ValueError):
     """A log, option or state estimate that an identification method cannot use."""
+
+
+class FilterDivergence(IdentificationError):
+    """The joint EKF's state left the finite numbers (its model cannot follow the log)."""
 
 
 # --------------------------------------------------------------------------- results
@@ -642,7 +648,7 @@ class JointEKF:
         self.process_std, self.stiffness_walk, self.stiffness_std0 = q, float(stiffness_walk), float(stiffness_std0)
         self.band = (lo, hi)
         self.offsets = offset_channels(offsets)
-        if isinstance(road_bank, bool) or not (isinstance(road_bank, (int, float)) and math.isfinite(road_bank)):
+        if isinstance(road_bank, bool) or not (isinstance(road_bank, numbers.Real) and math.isfinite(road_bank)):
             raise IdentificationError(f"road_bank must be a finite number of rad, got {road_bank!r}")
         self.road_bank = float(road_bank)
         if not isinstance(drift, bool):
@@ -687,7 +693,7 @@ class JointEKF:
                          np.ascontiguousarray(m.H0), np.ascontiguousarray(m.H1), np.ascontiguousarray(m.theta0), C,
                          rvar, Qc, STATE_SCALE * 1e-4, np.full(4, lo - 1.0), np.full(4, hi - 1.0), nd)
         if k_end < K:
-            raise IdentificationError(f"the EKF diverged at t = {t[k_end - 1]:.2f} s (sample {k_end - 1})")
+            raise FilterDivergence(f"the EKF diverged at t = {t[k_end - 1]:.2f} s (sample {k_end - 1})")
         self.t_ = t
         self.x_hat_ = Z[:, :8]
         self.stiffness_ = (1.0 + Z[:, 8:12]) * m.theta0
@@ -755,9 +761,13 @@ OFFSET_UNITS = {c: u for c, u in zip(OUTPUT_NAMES, OUTPUT_UNITS) if c in OFFSET_
 
 
 def offset_channels(offsets: Sequence[str] | str) -> tuple[str, ...]:
-    """``offsets`` checked: channels of :data:`OFFSET_CHANNELS`, each once (``"all"``: every one of them)."""
+    """``offsets`` checked: channels of :data:`OFFSET_CHANNELS`, each once (``"all"``: every one of them;
+    ``"none"``: none)."""
     if isinstance(offsets, str):
-        offsets = OFFSET_CHANNELS if offsets == "all" else (offsets,)
+        offsets = {"all": OFFSET_CHANNELS, "none": ()}.get(offsets, (offsets,))
+    if not isinstance(offsets, (tuple, list)) or not all(isinstance(c, str) for c in offsets):
+        raise IdentificationError(f"offsets must be 'all', 'none' or a sequence of channel names of "
+                                  f"{', '.join(OFFSET_CHANNELS)}, got {offsets!r}")
     out = tuple(offsets)
     bad = [c for c in out if c not in OFFSET_CHANNELS]
     if bad or len(set(out)) != len(out):
@@ -766,10 +776,17 @@ def offset_channels(offsets: Sequence[str] | str) -> tuple[str, ...]:
     return out
 
 
-def _drift_used(entry: dict[str, Any]) -> bool:
-    """Whether an offset table entry's drift is part of its offset: an entry of a drifting filter
-    (:meth:`JointEKF.offset_table`), unless marked ``"used": False`` (a drift reported beside a constant offset)."""
+def drift_used(entry: dict[str, Any]) -> bool:
+    """Whether an offset table entry's drift is part of its offset (a line, removed with it where the offset is
+    removed): an entry of a drifting filter (:meth:`JointEKF.offset_table`), unless marked ``"used": False`` (a
+    drift reported beside a constant offset)."""
     return "drift" in entry and entry["drift"].get("used", True)
+
+
+def stands_out(entry: dict[str, Any]) -> bool:
+    """Whether an offset table entry is one the data determine: the offset, or its drift where the drift is
+    used, beyond :data:`OFFSET_SIGNIFICANCE` standard deviations."""
+    return bool(entry["significant"] or (drift_used(entry) and entry["drift"]["significant"]))
 
 
 def remove_offsets(log, table: dict[str, dict[str, Any]]):
@@ -779,7 +796,7 @@ def remove_offsets(log, table: dict[str, dict[str, Any]]):
     from ptw_env.logs import RideLog
 
     t = np.asarray(log.t, dtype=float)
-    drop = {c: e["value"] + (e["drift"]["value"] * (t - e["drift"]["t_ref_s"]) if _drift_used(e) else 0.0)
+    drop = {c: e["value"] + (e["drift"]["value"] * (t - e["drift"]["t_ref_s"]) if drift_used(e) else 0.0)
             for c, e in table.items() if e.get("removed")}
     if not drop:
         return log
@@ -793,12 +810,11 @@ def _with_drift(ekf: JointEKF, log) -> tuple[JointEKF, dict[str, dict[str, Any]]
     (``drift=True``) is run beside ``ekf``; it replaces ``ekf`` when a drift stands out
     (:attr:`JointEKF.drifting`) and that filter explains the log (:attr:`JointEKF.explains`); else ``ekf``
     stays, and the drifts (``{}`` if that filter diverged) are reported, not used."""
-    d = JointEKF(sensors=ekf.sensors, process_std=ekf.process_std, stiffness_walk=ekf.stiffness_walk,
-                 stiffness_std0=ekf.stiffness_std0, band=ekf.band, model=ekf.model, offsets=ekf.offsets,
-                 road_bank=ekf.road_bank, drift=True)
+    d = copy.copy(ekf)  # the same settings (checked when ekf was made), with drifting offsets
+    d.drift = True
     try:
         d.fit(log)
-    except IdentificationError:
+    except FilterDivergence:
         return ekf, {}
     if d.drifting and d.explains:
         return d, {}
@@ -819,6 +835,20 @@ def _drift_reported(table: dict[str, dict[str, Any]], drifts: dict[str, dict[str
     return out
 
 
+def _fit_offsets(ekf: JointEKF, log) -> tuple[JointEKF, dict[str, dict[str, Any]]]:
+    """Fit ``ekf`` (constant offsets) and its drifting twin (:func:`_with_drift`); the filter used and its offset
+    table, each entry marked ``removed`` where it (or its drift) stands out and the filter explains the log.
+    Raises :class:`FilterDivergence` when ``ekf`` diverges."""
+    ekf.fit(log)
+    ekf, drifts = _with_drift(ekf, log)
+    # an offset is removed only where the data determine it (or its drift) and the model with the offsets
+    # explains the log: otherwise the "offsets" are what a model error leaves in the channels, and removing
+    # them is a guess
+    table = {c: {**e, "removed": stands_out(e) and ekf.explains}
+             for c, e in _drift_reported(ekf.offset_table(), drifts).items()}
+    return ekf, table
+
+
 def correct_offsets(log, offsets: Sequence[str] | str = "all", *, sensors: SensorConfig | None = None,
                     model: LPVModel | None = None, road_bank: float = 0.0):
     """The offsets' correction every command that reads a log runs first (``estimate``, ``risk``; module
@@ -830,24 +860,17 @@ def correct_offsets(log, offsets: Sequence[str] | str = "all", *, sensors: Senso
     Returns ``(log_corrected, table, nis, error)``: the log with the removed offsets taken off (``log`` itself
     when none is), the offset table (:meth:`JointEKF.offset_table`, each entry with ``removed`` and, where a
     drift was estimated, ``drift`` with ``used``), the filter's mean normalised innovations per channel
-    (:attr:`JointEKF.nis_`), and ``None``; or, when the filter diverges, ``(log, None, None, why)``. Bad
-    arguments raise :class:`IdentificationError`.
+    (:attr:`JointEKF.nis_`), and ``None``; with no channel, ``(log, {}, {}, None)``; when the filter diverges,
+    ``(log, None, None, why)``. Bad arguments and a log the filter cannot read raise :class:`IdentificationError`.
     """
     chans = offset_channels(offsets)
     ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=road_bank)
+    if not chans:
+        return log, {}, {}, None
     try:
-        ekf.fit(log)
-    except IdentificationError as exc:
+        ekf, table = _fit_offsets(ekf, log)
+    except FilterDivergence as exc:
         return log, None, None, str(exc)
-    if not chans:  # nothing to correct: the filter's innovations alone
-        return log, {}, dict(ekf.nis_), None
-    ekf, drifts = _with_drift(ekf, log)
-    # an offset is removed only where the data determine it (or its drift) and the model with the offsets
-    # explains the log: otherwise the "offsets" are what a model error leaves in the channels, and removing
-    # them is a guess
-    table = {c: {**e, "removed": bool((e["significant"] or (_drift_used(e) and e["drift"]["significant"]))
-                                      and ekf.explains)}
-             for c, e in _drift_reported(ekf.offset_table(), drifts).items()}
     return remove_offsets(log, table), table, dict(ekf.nis_), None
 
 
@@ -896,12 +919,12 @@ def estimate(log, method: str, *, sensors: SensorConfig | None = None, observer:
     chans = offset_channels(offsets)
     bank = observer.road_bank if observer is not None else 0.0  # a known bank in the filter's plant too
     if meth == "ukf":
-        ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank).fit(log)
+        ekf = JointEKF(sensors=sensors, model=model, offsets=chans, road_bank=bank)
         if not chans:
-            return ekf.result()
-        ekf, drifts = _with_drift(ekf, log)
+            return ekf.fit(log).result()
+        ekf, table = _fit_offsets(ekf, log)
         res = ekf.result()
-        table = {c: {**e, "removed": False} for c, e in _drift_reported(res.info["offsets"], drifts).items()}
+        table = {c: {**e, "removed": False} for c, e in table.items()}  # estimated jointly: nothing taken off
         return dataclasses.replace(res, info={**res.info, "offsets": table, "offset_filter_nis": dict(ekf.nis_)})
     if chans:
         fixed, table, nis, error = correct_offsets(log, chans, sensors=sensors, model=model, road_bank=bank)
