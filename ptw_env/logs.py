@@ -698,8 +698,7 @@ def ridden_part(log: RideLog) -> tuple[RideLog, list[str]]:
     good = ~(bad_tau | stand)
     if good.all():
         return log, []
-    edges = np.flatnonzero(np.diff(np.r_[0, good.astype(np.int8), 0]))
-    starts, ends = edges[::2], edges[1::2]  # usable runs [start, end)
+    starts, ends = _runs(good)  # usable runs [start, end)
     lengths = ends - starts
     why = []
     if stand.any():
@@ -726,6 +725,12 @@ def ridden_part(log: RideLog) -> tuple[RideLog, list[str]]:
     part = RideLog(t=log.t[s:e], columns={k: c[s:e] for k, c in log.columns.items()}, meta=log.meta, path=log.path,
                    ignored_columns=log.ignored_columns, lines=log.lines[s:e] if len(log.lines) == len(log) else ())
     return part, notes
+
+
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and ends (exclusive) of the runs of True in a boolean array."""
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask).astype(np.int8), 0]))
+    return edges[::2], edges[1::2]
 
 
 def unusable_samples(tau: np.ndarray, vx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -786,30 +791,27 @@ CLIP_NOISE_RATIO = 0.5
 CLIP_CHANNELS: tuple[str, ...] = tuple(c for c in KNOWN_COLUMNS if c not in ("t", "vx"))
 
 
-def clipped_samples(log: RideLog) -> dict[str, tuple[np.ndarray, float]]:
-    """The readings of ``log`` at a sensor's limit: ``{column: (mask, limit)}`` for each clipped column of
-    :data:`CLIP_CHANNELS` (one entry per clipped side; a column clipped at both ends has both limits' samples in
-    its mask, and ``limit`` is the side read more often).
+def clipped_samples(log: RideLog) -> dict[str, dict[float, np.ndarray]]:
+    """The readings of ``log`` at a sensor's limit: ``{column: {limit: mask}}`` for each clipped column of
+    :data:`CLIP_CHANNELS` (one mask per clipped side, the readings equal to that limit).
 
     A sensor (or an actuator's logged command) that saturates reads its limit exactly for as long as the true
-    value stays beyond it: a flat top. It is told from a signal that merely peaks by three facts, all required:
+    value stays beyond it: a flat top. It is told from a signal that merely peaks by two facts, both required:
 
     * at least :data:`CLIP_MIN_RUN` consecutive readings equal the column's maximum (or minimum), and that value
       lies on its own side of zero (an upper limit above 0, a lower one below: a signal resting at 0 is not
       clipped);
     * the column's other readings are noisy: they seldom repeat (at most :data:`CLIP_REPEAT_MAX` of
       consecutive pairs) and their second differences are as large as noise makes them
-      (:data:`CLIP_NOISE_RATIO`): in a noisy channel equal readings are the limit; in a quantised, held or
-      noise-free one they are common or expected and prove nothing (such a channel is not judged);
-    * the signal arrives at or leaves the flat top at speed: the larger of the steps into and out of the run is
-      at least half the column's median step. A signal that settles at a smooth maximum slows to a stop
-      before it; a clipped one is cut while it is still moving.
+      (:data:`CLIP_NOISE_RATIO`). In a noisy channel equal readings are the limit; in a quantised, held or
+      noise-free one they are common or expected (a smooth maximum, a value ramped to and held) and prove
+      nothing: such a channel is not judged, so a clip of a noise-free channel is not seen.
 
-    Every reading equal to a found limit is in the mask (each says only that the true value is at or beyond
+    Every reading equal to a found limit is in its mask (each says only that the true value is at or beyond
     it). The check reads nothing of the vehicle: a limit is found from the data, so any sensor range works.
     A clip smoothed by a filter before logging (an anti-alias resampling leaves no flat top) is not seen.
     """
-    out: dict[str, tuple[np.ndarray, float]] = {}
+    out: dict[str, dict[float, np.ndarray]] = {}
     for c in CLIP_CHANNELS:
         if not log.has(c):
             continue
@@ -827,31 +829,18 @@ def clipped_samples(log: RideLog) -> dict[str, tuple[np.ndarray, float]]:
         step = np.abs(np.diff(x))[pair]
         if np.mean(step == 0.0) > CLIP_REPEAT_MAX:
             continue  # quantised, held or noise-free: a flat top proves nothing
-        typical = float(np.median(step[step > 0.0]))
         triple = others[2:] & others[1:-1] & others[:-2]
-        if not triple.any() or float(np.median(np.abs(np.diff(x, 2))[triple])) < CLIP_NOISE_RATIO * typical:
+        if not triple.any() or (float(np.median(np.abs(np.diff(x, 2))[triple]))
+                                < CLIP_NOISE_RATIO * float(np.median(step[step > 0.0]))):
             continue  # a smooth, noise-free signal: a value it ramps to and holds is not a limit
-        mask = np.zeros(x.size, dtype=bool)
-        reads = {}
+        sides = {}
         for limit, side in ((hi, 1.0), (lo, -1.0)):
-            if not limit * side > 0.0:
-                continue  # an upper limit above zero, a lower one below
             at = ok & (x == limit)
-            edges = np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0]))
-            found = False
-            for s, e in zip(edges[::2], edges[1::2]):
-                if e - s < CLIP_MIN_RUN:
-                    continue
-                into = abs(x[s - 1] - limit) if s > 0 and ok[s - 1] else 0.0
-                out_of = abs(x[e] - limit) if e < x.size and ok[e] else 0.0
-                if max(into, out_of) >= 0.5 * typical:
-                    found = True
-                    break
-            if found:
-                mask |= at
-                reads[limit] = int(at.sum())
-        if reads:
-            out[c] = (mask, max(reads, key=reads.get))
+            starts, ends = _runs(at)
+            if limit * side > 0.0 and np.any(ends - starts >= CLIP_MIN_RUN):  # its own side of zero, a flat top
+                sides[limit] = at
+        if sides:
+            out[c] = sides
     return out
 
 
@@ -868,22 +857,30 @@ def without_clipped(log: RideLog) -> tuple[RideLog, list[str]]:
         return log, []
     cols = dict(log.columns)
     notes = []
-    for c, (mask, _) in clips.items():
-        x = np.asarray(log[c], dtype=float)
-        sides = ", ".join(f"{v:g} {COLUMN_UNITS.get(c, '')} at {int(np.sum(x[mask] == v))} sample(s)"
-                          for v in sorted(set(x[mask].tolist()), reverse=True))
+    for c, sides in clips.items():
+        mask = np.logical_or.reduce(list(sides.values()))
+        sides_text = ", ".join(f"{v:g} {COLUMN_UNITS.get(c, '')} at {int(m.sum())} sample(s)" for v, m in sides.items())
         cols[c] = np.where(mask, np.nan, cols[c])
         k = int(np.flatnonzero(mask)[0])
         what, use = (("a torque sensor's or the actuator's (or rider's) limit: which cannot be told, so the torque "
                       "there is not taken as known", "the windows and stretches holding them are left out as for a "
                       "torque dropout") if c == "tau" else
                      ("a clipped sensor", "they are left out of every comparison"))
-        notes.append(f"column '{c}' reads its limit {sides} ({100.0 * mask.mean():.1f} % of the log, the first at "
+        notes.append(f"column '{c}' reads its limit {sides_text} ({100.0 * mask.mean():.1f} % of the log, the first at "
                      f"{log.where(k)}): {what}, not a vehicle effect (flat tops at the column's extreme in a noisy "
                      f"channel that seldom repeats a reading); those readings are set as dropouts and {use}")
     part = RideLog(t=log.t, columns=cols, meta=log.meta, path=log.path, ignored_columns=log.ignored_columns,
                    lines=log.lines)
     return part, notes
+
+
+def usable_part(log: RideLog) -> tuple[RideLog, list[str]]:
+    """What a sequential estimator runs on (``ptw-assist estimate`` and ``risk``): ``log`` with the readings at a
+    sensor's limit set aside (:func:`without_clipped`), then its longest ridden stretch (:func:`ridden_part`), and
+    the notes of both."""
+    log, clipped = without_clipped(log)
+    part, trimmed = ridden_part(log)
+    return part, clipped + trimmed
 
 
 def check_against_vehicle(log: RideLog, vehicle: Any) -> None:

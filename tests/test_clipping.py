@@ -22,6 +22,8 @@ from assist.diagnose import diagnose
 from conftest import DATA
 from ptw_env.logs import CLIP_CHANNELS, CLIP_MIN_RUN, RideLog, clipped_samples, read_log, without_clipped, write_log
 from ptw_env.ride import ride_scenario
+from ptw_env.rider import DEFAULT_TAU_MAX
+from ptw_env.vehicle import REFERENCE_SCOOTER
 from ptw_env.scenarios import make_scenario
 from ptw_env.sensors import SensorConfig
 
@@ -53,10 +55,8 @@ def test_every_clipped_reading_is_found_and_no_other(ride, channel):
     log, beyond = clip(ride, channel, None, hi)
     assert beyond.sum() >= 10  # the ride reaches the limit
     found = clipped_samples(log)
-    assert set(found) == {channel}
-    mask, limit = found[channel]
-    assert limit == hi
-    np.testing.assert_array_equal(mask, beyond)
+    assert set(found) == {channel} and list(found[channel]) == [hi]
+    np.testing.assert_array_equal(found[channel][hi], beyond)
 
 
 @pytest.mark.parametrize("channel", ["ay", "roll", "delta"])
@@ -64,9 +64,9 @@ def test_a_channel_clipped_at_both_ends_is_found_at_both(ride, channel):
     x = ride[channel]
     a = 0.5 * float(np.nanmax(np.abs(x)))
     log, beyond = clip(ride, channel, -a, a)
-    mask, _ = clipped_samples(log)[channel]
-    np.testing.assert_array_equal(mask, beyond)
-    assert (log[channel][mask] > 0).any() and (log[channel][mask] < 0).any()
+    sides = clipped_samples(log)[channel]
+    assert sorted(sides) == [-a, a]
+    np.testing.assert_array_equal(sides[a] | sides[-a], beyond)
 
 
 def test_clean_logs_and_flat_signals_are_not_clipped(ride):
@@ -90,6 +90,10 @@ def test_clean_logs_and_flat_signals_are_not_clipped(ride):
     # the same pulses clipped at 0.8: found (the zero rule alone keeps the rest out)
     clipped = RideLog(t=t, columns={**log.columns, "tau": np.minimum(pulses, 0.8)})
     assert set(clipped_samples(clipped)) == {"tau"}
+    # a smooth channel is not judged, so its clip is not seen (a known limit): the disclosed log's rider torque
+    disclosed = read_log(DATA / "nominal_urban.csv")
+    clipped_tau, _ = clip(disclosed, "tau", None, 0.5 * float(np.nanmax(disclosed["tau"])))
+    assert clipped_samples(clipped_tau) == {}
     # a noise-free signal that ramps to a value and holds it: not a clip (not judged: no noise)
     hold = np.clip(np.minimum(3.0 * t, 30.0 - 3.0 * t), 0.0, 5.0) + 0.5
     log = RideLog(t=t, columns={**log.columns, "tau": hold, "yaw_rate": 0.04 * hold})
@@ -137,8 +141,9 @@ def test_a_rider_at_the_torque_limit_is_a_limit_too():
     finds exactly those, at the rider's limit (a limit of a sensor or an actuator: either way the replay cannot
     take the torque beyond it as known)."""
     log = ride_scenario("constant_radius", seed=2, effects={"tire_saturation": {"mu_peak": 0.6}}).log
+    tau_max = DEFAULT_TAU_MAX * REFERENCE_SCOOTER.torque_ratio  # the rider's limit (ptw_env.rider)
     found = clipped_samples(log)
-    assert set(found) == {"tau"}
-    mask, limit = found["tau"]
-    assert abs(limit) == 60.0 and mask.sum() >= CLIP_MIN_RUN
-    np.testing.assert_array_equal(mask, np.abs(log["tau"]) == 60.0)
+    assert set(found) == {"tau"} and [abs(v) for v in found["tau"]] == [tau_max]
+    mask = next(iter(found["tau"].values()))
+    assert mask.sum() >= CLIP_MIN_RUN
+    np.testing.assert_array_equal(mask, np.abs(log["tau"]) == tau_max)

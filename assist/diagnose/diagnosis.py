@@ -56,6 +56,16 @@ def _load(log_or_path: RideLog | str | os.PathLike) -> tuple[RideLog, str]:
     raise DiagnoseInputError(f"diagnose: expected a RideLog or a path to a ride log, got {type(log_or_path).__name__}")
 
 
+def log_vehicle(log: RideLog) -> Vehicle:
+    """The vehicle a diagnosis of ``log`` takes when none is given (diagnose.md: ``--vehicle``, else the
+    sidecar's vehicle, else the reference scooter); a sidecar naming a vehicle that cannot be loaded is a
+    :class:`DiagnoseInputError`."""
+    try:
+        return vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER
+    except VehicleFileError as exc:
+        raise DiagnoseInputError(str(exc)) from None
+
+
 def _positive(name: str, v: float) -> float:
     try:
         f = float(v)
@@ -163,11 +173,8 @@ def diagnose(
     if not (vehicle is None or isinstance(vehicle, Vehicle)):
         raise DiagnoseInputError(f"diagnose: vehicle must be a ptw_env.vehicle.Vehicle, got {type(vehicle).__name__}")
     log, name = _load(log_or_path)
-    if vehicle is None:  # diagnose.md: --vehicle, else the sidecar's vehicle, else the reference scooter
-        try:
-            vehicle = vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER
-        except VehicleFileError as exc:
-            raise DiagnoseInputError(str(exc)) from None
+    if vehicle is None:
+        vehicle = log_vehicle(log)
     # 1. nominal replay (weighted by the reference sensors' noise), noise levels from its residual
     if window_s is None:
         window_s = auto_window(log.duration_s, lead_s)
@@ -463,4 +470,4 @@ def _replayed_roll(replay: Replay, x0: np.ndarray, widx: np.ndarray) -> np.ndarr
     return X[..., 0]
 
 
-__all__ = ["diagnose", "DiagnoseInputError", "nominal_replay", "replay_windows", "score_model", "SCORE_STATE_STEPS"]
+__all__ = ["diagnose", "DiagnoseInputError", "log_vehicle", "nominal_replay", "replay_windows", "score_model", "SCORE_STATE_STEPS"]
