@@ -69,8 +69,8 @@ import numpy as np
 
 from .dynamics import Plant, compile_plant
 from .effects import Effects, as_effects
-from .integrate import Stepper
-from .vehicle import Vehicle, speed_array
+from .integrate import Stepper, speed_grid
+from .vehicle import REFERENCE_SCOOTER, Vehicle, speed_array
 
 #: Road friction that the nominal tire stiffness of model.md refers to (dry asphalt) [-].
 REFERENCE_FRICTION = 0.9
@@ -252,7 +252,9 @@ class FrictionPlants:
         self.vehicle = vehicle
         self.effects = as_effects(effects).dynamic
         self.dt = float(dt)
-        self.speeds = None if speeds is None else speed_array(speeds)  # checked here, not at the first new friction
+        if speeds is not None:  # the Stepper's check (speed_grid), made here rather than at the first new friction
+            speed_grid(REFERENCE_SCOOTER if vehicle is None else vehicle, speeds)
+        self.speeds = None if speeds is None else speed_array(speeds)
         self._cache: dict[float, tuple[Plant, Stepper]] = {}
 
     def _entry(self, mu: float) -> tuple[Plant, Stepper]:

@@ -77,8 +77,8 @@ def speed_grid(vehicle: Vehicle, speeds) -> np.ndarray:
         raise SimulationInputError(str(exc)) from None
     lo, hi = float(v.min()), float(v.max())
     if lo < vehicle.vmin or hi > vehicle.vmax:  # as simulate(): the model holds on the vehicle's range only
-        raise SimulationInputError(f"speeds {lo:g}-{hi:g} m/s leave the vehicle {vehicle.name!r}'s valid range "
-                                   f"[{vehicle.vmin:g}, {vehicle.vmax:g}] m/s")
+        raise SimulationInputError(f"speeds {lo:g} to {hi:g} m/s leave the valid range [{vehicle.vmin:g}, "
+                                   f"{vehicle.vmax:g}] m/s of the vehicle {vehicle.name!r}")
     span = max(vehicle.vmax - vehicle.vmin, 1e-9)
     n = 1 if hi - lo <= 1e-9 else 1 + max(1, math.ceil((RATE_GRID - 1) * (hi - lo) / span - 1e-9))
     return np.linspace(lo, hi, n)

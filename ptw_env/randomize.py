@@ -479,6 +479,10 @@ class Randomization:
         """:meth:`uniforms` written into rows ``rows`` of ``out`` (float64, C-contiguous, ``len(keys)`` columns):
         generator ``rngs[j]`` fills ``out[rows[j]]`` (``random(out=...)``: the numbers of ``random(len(keys))``,
         without a temporary array per generator)."""
+        if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.ndim == 2
+                and out.shape[1] == len(self.dists) and out.flags.c_contiguous):
+            raise RandomizationError(f"out must be a C-contiguous float64 array of {len(self.dists)} columns, got "
+                                     f"{getattr(out, 'dtype', type(out).__name__)} {getattr(out, 'shape', '')}")
         for rng, r in zip(rngs, rows):
             rng.random(out=out[r])
 

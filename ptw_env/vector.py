@@ -70,8 +70,7 @@ def take_next(idx, plant, sensors, rtable, nxt, W, nW, s, ns, f, nf, b, nb, mass
     """Rows ``idx`` of the next-episode tables copied into this episode's: the randomised values
     (``rtable <- nxt``), with ``plant`` the compiled plants (``W``, ``inv_sigma``, ``fmax``, ``bank``, ``mass``,
     ``fz``), with ``sensors`` the sensor terms (``offset``, ``std``, ``gain``). One compiled call instead of a
-    numpy fancy-index copy per array, whose call overheads were most of a randomised reset's cost (what a reset
-    costs now: ``scripts/bench_vector.py``)."""
+    numpy fancy-index copy per array (what a randomised reset costs: ``scripts/bench_vector.py``)."""
     for i in idx:
         rtable[i, :] = nxt[i, :]
         if plant:

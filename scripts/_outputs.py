@@ -32,18 +32,18 @@ def output_dir(parser: argparse.ArgumentParser, path: str | os.PathLike, overwri
 
 def output_file(parser: argparse.ArgumentParser, option: str, path: str | os.PathLike | None,
                 overwrite: bool) -> Path | None:
-    """``path`` (the value of ``option``) checked before any work: its folder exists and it does not,
-    unless ``overwrite``."""
+    """``path`` (the value of ``option``) checked before any work, as the commands check theirs
+    (:func:`ptw_env.outputs.check_writable`: its folder exists and takes a new file, it is not a folder or a
+    device, it does not exist unless ``overwrite``); a refusal is the parser's one-line error."""
     if path is None:
         return None
-    f = Path(path)
-    if not f.parent.is_dir():
-        parser.error(f"{option}: folder {f.parent} does not exist")
-    if f.is_dir():
-        parser.error(f"{option}: {f} is a folder, not a file")
-    if f.exists() and not overwrite:
-        parser.error(f"{option}: {f} exists; pass --overwrite to replace it")
-    return f
+    from ptw_env.outputs import OutputError, check_writable
+
+    try:
+        check_writable(path, option, overwrite)
+    except OutputError as exc:
+        parser.error(str(exc))
+    return Path(path)
 
 
 def shared_data(sub: str) -> Path:

@@ -61,20 +61,12 @@ def _as_log(src):
     return read_log(src) if isinstance(src, (str, os.PathLike)) else src
 
 
-def log_vehicle(log):
-    """The vehicle ``diagnose()`` takes for ``log`` (its sidecar's, else the reference scooter)."""
-    from ptw_env.vehicle import REFERENCE_SCOOTER
-    from ptw_env.vehicle_files import vehicle_of_log
-
-    return vehicle_of_log(log.meta, log.path) or REFERENCE_SCOOTER
-
-
 def nominal_replay_seconds(log, repeat: int = 3) -> float:
     """Best-of-``repeat`` wall time [s] of one batched nominal replay of ``log`` (module docstring):
     every replay window of the diagnosis, initial states fitted by the same Gauss-Newton steps."""
     import numpy as np
 
-    from assist.diagnose.diagnosis import replay_windows
+    from assist.diagnose.diagnosis import log_vehicle, replay_windows
     from assist.diagnose.replay import Replay
     from ptw_env.integrate import one_blas_thread
     from ptw_env.sensors import DEFAULT_NOISE_STD
@@ -138,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     logs: list[tuple[str, object]] = []
     if a.log:
         from assist.diagnose import DiagnoseInputError
-        from assist.diagnose.diagnosis import replay_windows
+        from assist.diagnose.diagnosis import log_vehicle, replay_windows
         from ptw_env.logs import LogDataError, LogFormatError
 
         logs = []

@@ -359,3 +359,7 @@ def test_speeds_outside_the_vehicles_range_are_one_clear_error(speeds):
         speed_grid(REFERENCE_SCOOTER, speeds)
     with pytest.raises(SimulationInputError, match="valid range"):
         substeps_for(0.01, vehicle=REFERENCE_SCOOTER, speeds=speeds)
+    from ptw_env.friction import FrictionPlants, FrictionSchedule
+
+    with pytest.raises(SimulationInputError, match="valid range"):  # at once, not at the first new friction
+        FrictionPlants(FrictionSchedule(((0.0, 0.9), (10.0, 0.5))), speeds=speeds)

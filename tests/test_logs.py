@@ -558,8 +558,12 @@ def test_ridden_part_keeps_the_longest_ridden_stretch_and_names_what_it_left_out
     assert "2 shorter ridden stretch(es)" in notes[1] and "2.89 s in all" in notes[1]
     whole = read_log(write_log(tmp_path / "whole.csv", columns(300, seed=5) | {"vx": np.full(300, 3.0)}))
     assert ridden_part(whole) == (whole, [])
-    cols["vx"][::80] = 0.0  # no stretch of 1 s
-    with pytest.raises(LogDataError, match=r"no ridden stretch of at least 1 s and 10 samples \(longest: 0\.79 s, 79 samples\)"):
+    from ptw_env.logs import MIN_DURATION_S, MIN_SAMPLES
+
+    gap = int(round(0.8 * MIN_DURATION_S / 0.01))  # every stretch shorter than the shortest kept (100 Hz)
+    cols["vx"][::gap] = 0.0
+    with pytest.raises(LogDataError, match=rf"no ridden stretch of at least {MIN_DURATION_S:g} s and {MIN_SAMPLES} "
+                                           rf"samples \(longest: {(gap - 1) * 0.01:.2f} s, {gap - 1} samples\)"):
         ridden_part(read_log(write_log(tmp_path / "short.csv", cols)))
 
 

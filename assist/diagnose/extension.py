@@ -214,10 +214,9 @@ def best_extension(fitter: HypothesisFitter, bases: list[tuple[list[dict], int, 
     The bases are tried in order, the sparsest first (the nominal model): once an extension explains the log to
     within the noise, the later bases are not tried, as :func:`extend` adds no term once its model explains
     the log and beats the table verdict's score (issue 19: the sparsest set that explains the residual).
-    Measured on a 90 s urban log with a yaw gyro reading 1.2x (``scripts/bench_diagnose.py``): the nominal
-    model with ``yaw_rate_scale`` 0.1994 explains it; the diagnosis takes 276-285 nominal replays' worth of time
-    (the benchmark's "x replay", measured against a replay in the same run), against 648 in a run just before this
-    rule (not stored), which also searched from the table verdict and did not choose it."""
+    On the benchmark's 90 s urban log with a yaw gyro reading 1.2x (``scripts/bench_diagnose.py``, its "x replay"
+    column, stored under ``docs/results/``) the nominal model with ``yaw_rate_scale`` explains it and the
+    verdict's base is not searched."""
     n = float(counts.sum())
     best, best_score = None, -math.inf
     if S_verdict is not None:

@@ -209,7 +209,9 @@ def _closure_specs(vehicle: Vehicle, s: "VehicleScales") -> tuple[ParamSpec, ...
         "yaw_aero": 0.24 * K / v**2, "yaw_vx_vy": 0.24 * K / v, "lateral_aero": 0.1 * Mg / v**2,
         "lateral_vx_vy": 0.1 * Mg / v, "delta_offset": 0.05, "ay_offset": 1.0,
         "yaw_rate_scale": 0.3, "ay_scale": 0.3,
-        "yaw_rate_drift": 0.1, "roll_rate_drift": 0.1, "ay_drift": 1.0,  # typical sizes: gyro_bias's, ay_offset's
+        # a drift's change from the middle to the end: a third of gyro_bias's range (its screening grid then
+        # starts at gyro_bias's typical size, 0.005 rad/s), ay_offset's range
+        "yaw_rate_drift": 0.1, "roll_rate_drift": 0.1, "ay_drift": 1.0,
     }
     out = []
     for t in CLOSURE_LIBRARY:
