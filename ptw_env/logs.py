@@ -60,7 +60,7 @@ Examples
 >>> len(log), round(log.sample_rate_hz, 6), round(log.duration_s, 6), log.meta["vehicle"]
 (200, 100.0, 2.0, 'reference-scooter')
 
-Length (about 800 lines): the ride-log format of logs.md end to end, one reader of one format:
+Length (about 1000 lines): the ride-log format of logs.md end to end, one reader of one format:
 reading with located errors, sidecar checks, writing, and the held-speed reconstruction every
 consumer uses.
 """

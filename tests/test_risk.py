@@ -34,7 +34,7 @@ SAT = "tire_saturation:mu_peak=0.9"
 
 @pytest.fixture(scope="module")
 def estimator():
-    return default_estimator(5.0)
+    return default_estimator(5.0, tire="stiffness")
 
 
 def _stiff() -> FrictionEstimate:
@@ -372,8 +372,9 @@ def test_road_bank_estimated_on_line_keeps_the_friction_estimate(banked_log):
     and the friction estimate stays near 0.9, where the level-road model is biased by the bank."""
     from assist.risk.pipeline import default_estimator
 
-    level = assess_log(banked_log, RiskPipeline(default_estimator(5.0), road_bank=None, tire="stiffness"))
-    pipe = RiskPipeline(default_estimator(5.0), tire="stiffness")  # road_bank="auto", the default
+    level = assess_log(banked_log, RiskPipeline(default_estimator(5.0, tire="stiffness"), road_bank=None,
+                                                tire="stiffness"))
+    pipe = RiskPipeline(default_estimator(5.0, tire="stiffness"), tire="stiffness")  # road_bank="auto", the default
     pipe.bank_estimate.record = True
     auto = assess_log(banked_log, pipe)
     b = np.asarray(pipe.bank_estimate.history)

@@ -28,7 +28,7 @@ SEEDS = (0, 1)
 
 @pytest.fixture(scope="module")
 def rides():
-    pipe = RiskPipeline(default_estimator(5.0), tire="stiffness")
+    pipe = RiskPipeline(default_estimator(5.0, tire="stiffness"), tire="stiffness")
     out = {}
     for k in ("dry", "wet", "too_fast"):
         for s in SEEDS:

@@ -143,35 +143,49 @@ def test_bank_estimate_takes_the_gyro_bias_out_and_keeps_the_bank(kind):
 
 
 def test_dry_ride_is_never_read_as_wet(pipeline):
-    """A dry ride at 56 % of the grip: the tires never bend their curve far enough to be read, the friction
-    stays at the prior and no warning comes."""
+    """A dry ride at 56 % of the grip: the friction filter reads the reference road in the loaded corners and
+    never a lower friction; the friction stays at 0.9 and no warning comes."""
     res = run_case(make_case("dry", 3), pipeline)
     s = res.summary()
     assert s["caution_episodes"] == 0 and s["danger_episodes"] == 0 and not res.events.size
-    assert not res.run.series("friction_informed").any() and s["mu_hat_final"] == pytest.approx(0.9)
+    informed = res.run.series("friction_informed").astype(bool)
+    assert informed.any() and np.all(res.run.series("mu_hat") == 0.9) and s["mu_hat_final"] == 0.9
+
+
+def _first_lower_reading(res) -> int:
+    """Index of the first informed reading below the reference road."""
+    low = res.run.series("friction_informed").astype(bool) & (res.run.series("mu_hat") < 0.9)
+    k = np.flatnonzero(low)
+    assert k.size, "never read a lower friction"
+    return int(k[0])
 
 
 def test_wet_patch_in_a_corner_is_told_by_the_tires_at_once_and_cautioned_within_the_latency(pipeline):
     """Truth: a patch that begins under tires carrying 0.45 of their load sideways; the tires tell the new
     road within 0.15 s (oracle); the grip is lost 0.16 s after the drop, and the warning cautions within
-    LATENCY_S of the drop, reading the slide (mu_hat from the bend of the curve)."""
+    LATENCY_S of the drop, on the friction filter's reading (the bend of the tire curve: a lower friction,
+    read on the new road and not before it, within two of its standard deviations of 0.45)."""
     res = run_case(make_case("wet_corner", 0), pipeline)
     lat = res.summary()["latency"]
     assert lat["load_at_reference"] >= 0.2
     assert lat["information_after_s"] <= 0.15
     assert lat["caution_after_s"] is not None and lat["caution_after_s"] <= LATENCY_S
-    k = np.flatnonzero(res.run.series("friction_informed"))
-    assert k.size and res.run.t[k[0]] >= res.reference_time()  # read on the new road, not guessed before it
-    assert res.run.series("mu_hat")[k[0]] == pytest.approx(0.45, abs=0.05)  # its first reading (0.48 measured)
+    k = _first_lower_reading(res)
+    assert res.run.t[k] >= res.reference_time()
+    mu, sd = res.run.series("mu_hat")[k], res.run.series("mu_std")[k]
+    assert abs(mu - 0.45) <= 2.0 * sd
 
 
-@pytest.mark.xfail(strict=True, reason="measured (scripts/eval_risk.py, README): a loaded drop whose tires touch "
-                                       "their limit without sliding on is not read (the stiffness estimate stays "
-                                       "in its model-error band); 5 of the 40 evaluation rides")
 def test_wet_patch_in_a_corner_that_does_not_slide_is_cautioned(pipeline):
+    """Truth: this patch (seed 3) takes the tires to their limit for an instant (|F_ss| >= 0.95 Fmax) 0.5 s
+    after the drop without sliding on; the stiffness reading of the earlier default never read it (5 of the 40
+    evaluation rides were such: docs/results/risk/results.md at commit 6c1a803); the friction filter reads it
+    and the caution comes within LATENCY_S."""
     res = run_case(make_case("wet_corner", 3), pipeline)
-    assert res.events.size  # the grip is lost for an instant (|F_ss| >= 0.95 Fmax), 0.5 s after the drop
-    assert res.summary()["latency"]["caution_after_s"] is not None
+    assert res.events.size
+    lat = res.summary()["latency"]
+    assert lat["caution_after_s"] is not None and lat["caution_after_s"] <= LATENCY_S
+    assert res.run.t[_first_lower_reading(res)] >= res.reference_time()
 
 
 def test_wet_patch_on_a_straight_is_invisible_until_the_next_corner(pipeline):
@@ -189,9 +203,10 @@ def test_wet_patch_on_a_straight_is_invisible_until_the_next_corner(pipeline):
 
 
 def test_curve_entered_too_fast_on_a_damp_road_is_cautioned_only_at_the_slide(pipeline):
-    """Truth: the damp road (mu 0.55-0.62) is told by the warm-up curves at 0.3 g (the oracle had it tens of
-    seconds before the critical curve); the stiffness reading, inside its model-error band there, is not,
-    so the curve looks feasible on the prior 0.9 and the caution comes only as the grip goes (README)."""
+    """Truth: the damp road (mu 0.55-0.62) is told by the warm-up curves at 0.3 g to the oracle, which knows the
+    side slip (it had it tens of seconds before the critical curve); the friction filter, which must estimate
+    the slip, does not read it in a steady corner (a steady turn is explained by either tire with another side
+    slip), so the curve looks feasible on the prior 0.9 and the caution comes only as the grip goes (README)."""
     res = run_case(make_case("too_fast", 2), pipeline)
     ev = res.summary()["events"][0]
     assert ev["information_lead_bound_s"] > 10.0

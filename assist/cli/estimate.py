@@ -83,7 +83,7 @@ def _build(p: argparse.ArgumentParser):
     p.add_argument("--tau-a", type=number(0, 1e6, unit="s", lo_open=True), default=None, metavar="S",
                    help="paper's law: adaptation time constant [s] (default 10)")
     p.add_argument("--offsets", type=offsets_option, default="all", metavar="CHANNELS",
-                   help=OFFSETS_HELP + " (for the other methods; ukf estimates them jointly)")
+                   help=OFFSETS_HELP + " (default all; for the other methods; ukf estimates them jointly)")
     p.add_argument("--plot", default=None, metavar="OUT.png")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")

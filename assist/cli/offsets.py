@@ -16,8 +16,8 @@ OFFSETS_HELP = ("sensor offsets as nuisance parameters, estimated first by a joi
                 "each offset beyond 3 of its standard deviations is removed from the log if the filter with the "
                 "offsets explains every channel (mean normalised innovation at most 3), else reported, not removed; "
                 "a second filter with linearly drifting offsets replaces the first where a drift stands out and it "
-                "explains the log (the offsets are then removed as lines over the log): all (default: delta, "
-                "yaw_rate, roll_rate, ay), none, or a comma-separated list of those channels")
+                "explains the log (the offsets are then removed as lines over the log): all (delta, yaw_rate, "
+                "roll_rate, ay), none, or a comma-separated list of those channels")
 
 
 def offsets_option(text: str) -> tuple[str, ...]:

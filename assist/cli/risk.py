@@ -2,7 +2,7 @@
 
 Registered into the one command line of :mod:`ptw_env.cli` (``build_parser``
 imports this module). The log goes through :func:`assist.risk.offline.assess_log`
-(the adaptive observer, then the risk monitor); with a ``kappa`` column the
+(the friction filter, then the risk monitor); with a ``kappa`` column the
 road ahead is previewed from it, otherwise only the curve being ridden is
 known. ``--json`` holds ``{"mu_hat_final", "warnings": [{"t", "level",
 "reason", "until"}], ...}``. A simulated log with truth columns also gets
@@ -23,6 +23,12 @@ from ptw_env.cli import CLIError, road_bank_or_auto, check_outputs, NOISE_PCT, c
 
 from assist.cli.offsets import OFFSETS_HELP, filter_sensors, noise_pct_given, offset_error_note, offset_notes, offsets_option
 
+#: ``--offsets`` default of risk: the offset channels the friction filter does not carry
+#: (:data:`assist.estimation.identification.OFFSET_CHANNELS` without
+#: :data:`assist.estimation.friction_imm.CARRIED_OFFSETS`; written out so that building the parser stays light,
+#: tested equal).
+RISK_OFFSETS = ("delta", "roll_rate")
+
 
 @command(
     "risk",
@@ -38,15 +44,17 @@ def _build(p: argparse.ArgumentParser):
                         "(default: the sidecar's noise_pct, else 5)")
     p.add_argument("--no-map", action="store_true", help="ignore a kappa column (no preview of the road ahead)")
     p.add_argument("--confirm-sigmas", type=number(0, 10), default=None, metavar="K",
-                   help="caution also when the grip is not confirmed at K sigma (0-10, default 2; 0: the estimate alone)")
+                   help="caution also when the grip is not confirmed at K sigma (0-10; default 0, the estimate alone: "
+                        "on tires that lose their peak on a wet road the grip is not confirmed short of the limit)")
     p.add_argument("--road-bank", type=road_bank_or_auto, default="auto", metavar="RAD|auto",
                    help="bank (cross-fall) of the road: 'auto' (default) estimates it on line from the lateral "
                         "acceleration and the yaw rate on straights; a number in rad fixes it (e.g. from "
                         "'ptw-assist diagnose'; 0: level)")
-    p.add_argument("--offsets", type=offsets_option, default="all", metavar="CHANNELS",
-                   help=OFFSETS_HELP + " (a gyro offset would otherwise read as a road bank; with --road-bank auto the "
-                                       "filter assumes a level road, so on a banked road it may read the bank as offsets "
-                                       "and take it off: give the bank if it is known)")
+    p.add_argument("--offsets", type=offsets_option, default=RISK_OFFSETS, metavar="CHANNELS",
+                   help=OFFSETS_HELP + f" (for risk the default is {','.join(RISK_OFFSETS)}: the friction filter "
+                                       "carries the yaw-gyro offset as a state and reads a lateral accelerometer offset "
+                                       "as the road bank, while this level-road pre-filter reads a bank as offsets "
+                                       "and, with those two channels, can take it off)")
     p.add_argument("--plot", default=None, metavar="OUT.png", help="timeline figure")
     p.add_argument("--json", default=None, metavar="FILE")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
@@ -69,17 +77,17 @@ def _build(p: argparse.ArgumentParser):
         dt = float(log.dt)
         given = noise_pct_given(a.noise, log.meta)  # None: not stated
         pct = DEFAULT_NOISE_PCT if given is None else given
-        cfg = RiskConfig() if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)
+        cfg = None if a.confirm_sigmas is None else RiskConfig(confirm_sigmas=a.confirm_sigmas)  # None: the tire's
         try:
             est = default_estimator(pct, dt, vehicle, np.asarray(log.columns["vx"], dtype=float))
         except ValueError as exc:
-            raise CLIError(f"{a.log}: the adaptive observer cannot be designed for this log ({exc})") from None
+            raise CLIError(f"{a.log}: the risk estimator cannot be built for this log ({exc})") from None
         if a.offsets:  # sensor offsets and drifts as nuisance parameters, as estimate does (issue 19)
             from assist.estimation.identification import correct_offsets
 
             known = 0.0 if a.road_bank == "auto" else float(a.road_bank)  # a known bank in the filter's plant
             fixed, offsets, nis, error = correct_offsets(log, a.offsets, sensors=filter_sensors(given, vehicle),
-                                                         model=est.design.model, road_bank=known)
+                                                         model=est.model, road_bank=known)
             if error is not None:
                 trimmed = trimmed + [offset_error_note(error, before="the warning")]
             else:
@@ -93,7 +101,7 @@ def _build(p: argparse.ArgumentParser):
         js = res.to_json()
         js["log"] = str(a.log)
         js["vehicle"] = vehicle.identity()
-        js["observer_speed_range"] = [est.design.model.vmin, est.design.model.vmax]
+        js["observer_speed_range"] = [est.model.vmin, est.model.vmax]
         js["noise_pct_assumed"] = pct
         js["road_bank_rad"] = a.road_bank
         if a.offsets and error is None:
@@ -101,6 +109,9 @@ def _build(p: argparse.ArgumentParser):
             js["offset_filter_nis"] = nis
         if banks:
             js["road_bank_estimate_rad"] = banks
+        elif a.road_bank == "auto" and getattr(est, "estimates_bank", False):  # the friction filter's own states
+            js["road_bank_estimate_rad"] = {"final": est.road_bank}
+            js["yaw_rate_offset_estimate_rad_s"] = est.yaw_rate_offset
         last = res.assessments[-1]
         truth = truth_from_log(log, vehicle)
         print(f"{a.log}: {len(log)} samples, {log.duration_s:.1f} s; vehicle {vehicle.name}; road ahead: "
@@ -109,6 +120,9 @@ def _build(p: argparse.ArgumentParser):
             js["notes"] = trimmed
             for n in trimmed:
                 print(f"note: {n}")
+        if not banks and "yaw_rate_offset_estimate_rad_s" in js:
+            print(f"road bank and yaw-gyro offset estimated by the friction filter: {est.road_bank:.4f} rad, "
+                  f"{est.yaw_rate_offset:+.4f} rad/s at the end")
         if banks:
             e = js["road_bank_estimate_rad"]
             print(f"road bank estimated on line: median {e['median']:.4f} rad (5-95 %: {e['p5']:.4f} to "

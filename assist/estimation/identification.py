@@ -124,7 +124,7 @@ References
 .. [2] P. Young, "Parameter estimation for continuous-time models - a
    survey", Automatica 17(1), 1981.
 
-Length (about 710 lines): three baselines (direct, inversion, joint EKF) behind one estimator
+Length (about 1050 lines): three baselines (direct, inversion, joint EKF, with sensor offsets and drifts) behind one estimator
 interface, sharing the weighted least squares and the log handling.
 """
 
@@ -484,6 +484,22 @@ def _f_aug(x, s, M, c, g, vx, inv_sigma, fmax, bank, H0, H1, c0, out):
 
 
 @njit(cache=True)
+def taylor_transition(F: np.ndarray, h: float, nsub: int) -> np.ndarray:
+    """The covariance transition of an extended Kalman filter over ``nsub`` substeps of ``h`` [s] with the
+    Jacobian ``F`` held: ``Phi = (I + F h + (F h)^2/2 + (F h)^3/6 + (F h)^4/24)^nsub``, the fourth-order Taylor
+    step of ``exp(F h)`` (the order of the RK4 mean), used by the joint EKF and :mod:`assist.estimation.friction_imm`."""
+    n = F.shape[0]
+    Fh = F * h
+    Fh2 = Fh @ Fh
+    Fh3 = Fh2 @ Fh
+    Phi1 = np.eye(n) + Fh + Fh2 / 2.0 + Fh3 / 6.0 + Fh3 @ Fh / 24.0
+    Phi = Phi1.copy()
+    for _ in range(nsub - 1):
+        Phi = Phi1 @ Phi
+    return Phi
+
+
+@njit(cache=True)
 def _ekf_run(Zout, Pdiag, Nis, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, nsub, H0, H1, c0, C, rvar,
              Qc, fd_eps, s_lo, s_hi, nd):
     K = Y.shape[0]
@@ -559,13 +575,7 @@ def _ekf_run(Zout, Pdiag, Nis, z, P, Y, TAU, VX, W, inv_sigma, fmax, bank, dt, n
         for j in range(nd):  # the first nd offsets drift: b_j' = d_j
             F[12 + j, 12 + nb + j] = 1.0
         hsub = dt / nsub
-        Fh = F * hsub
-        Fh2 = Fh @ Fh
-        Fh3 = Fh2 @ Fh
-        Phi1 = np.eye(n) + Fh + Fh2 / 2.0 + Fh3 / 6.0 + Fh3 @ Fh / 24.0
-        Phi = Phi1.copy()
-        for _ in range(nsub - 1):
-            Phi = Phi1 @ Phi
+        Phi = taylor_transition(F, hsub, nsub)
         P[:, :] = Phi @ P @ Phi.T + Qc * dt
         for i in range(n):
             for j in range(i):

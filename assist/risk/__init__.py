@@ -1,8 +1,9 @@
 """Risk warning from the estimated road friction (issue 5; the aim of Fouka, Nehaoua, Arioui).
 
-* :mod:`assist.risk.friction_estimate`: ``mu_hat`` from a tire-stiffness estimate, gated by lateral excitation;
+* :mod:`assist.risk.friction_estimate`: ``mu_hat`` from an estimator's own friction reading (the friction filter
+  of :mod:`assist.estimation.friction_imm`, the default) or from a tire-stiffness estimate, held between readings;
 * :mod:`assist.risk.monitor`: :class:`RiskMonitor` (utilisation, safe lean, safe curve speed, levels);
-* :mod:`assist.risk.pipeline`: sensors -> pluggable stiffness estimator -> monitor;
+* :mod:`assist.risk.pipeline`: sensors -> pluggable estimator (friction filter or stiffness estimator) -> monitor;
 * :mod:`assist.risk.wrapper`: :class:`RiskWarningWrapper`, the assessment in a Gymnasium ``info``;
 * :mod:`assist.risk.offline`: :func:`assess_log` on a ride log, the timeline figure;
 * :mod:`assist.risk.evaluation`: the evaluation rides (dry, wet patch, curve too fast) and simulator truth.

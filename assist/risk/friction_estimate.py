@@ -86,6 +86,13 @@ that, within reach of the grip (a secant of 0.54 is 94 % of it): a wet road is s
 near their limit, not before. A tire-reading warning on such tires cannot see a wet patch at small
 slip; README, "Risk warning", measures what that costs.
 
+An estimator's own reading
+--------------------------
+An estimator that reads the friction itself (:class:`assist.estimation.friction_imm.FrictionIMM`, the risk
+warning's default for peak-scaling tires: models of the saturating tire over a grid of frictions) gives
+``reading`` to :meth:`FrictionEstimate.update`: its ``mu`` and ``std`` replace the mapping above and it is
+used where it says ``informed`` (after ``settle_s``); between readings the same hold and random walk apply.
+
 Examples
 --------
 >>> import numpy as np
@@ -330,10 +337,14 @@ class FrictionEstimate:
         self._t0: float | None = None
         self.state: FrictionState | None = None
 
-    def update(self, t: float, stiffness, stiffness_std, ay: float, axle_accel=None) -> FrictionState:
+    def update(self, t: float, stiffness, stiffness_std, ay: float, axle_accel=None, reading=None) -> FrictionState:
         """Take one sample: time [s], stiffness estimate and its 1-sigma [N/rad], measured ``a_y`` [m/s^2]
         (NaN: a dropout, the excitation filter holds) and optionally the axle forces over the axle
-        loads, ``g F_k / Fz_k`` [m/s^2] (the excitation is then the largest of the three, filtered)."""
+        loads, ``g F_k / Fz_k`` [m/s^2] (the excitation is then the largest of the three, filtered).
+
+        ``reading``: an estimator's own friction reading (an object with ``mu``, ``std``, ``informed`` and
+        ``status``, as :class:`assist.estimation.friction_imm.FrictionReading`): it replaces the stiffness
+        mapping; it is used where it says ``informed``, after the first ``settle_s`` (the filter's start-up)."""
         c = self.config
         t = float(t)
         if not math.isfinite(t):
@@ -349,6 +360,25 @@ class FrictionEstimate:
         ok = np.isfinite(sig)
         self._ay_f[ok] += a * (sig[ok] - self._ay_f[ok])
         exc = float(np.max(np.abs(self._ay_f)))
+        if reading is not None:  # the estimator reads the friction itself
+            if self._t0 is None:
+                self._t0 = t
+            mu_raw, raw_std = float(reading.mu), float(reading.std)
+            settling = t - self._t0 < c.settle_s
+            use = bool(reading.informed) and not settling and MU_RANGE[0] <= mu_raw <= MU_RANGE[1]
+            if use:
+                self._mu, self._var_last, self._t_last = mu_raw, raw_std**2, t
+                informed, since, std = True, 0.0, raw_std
+            else:
+                informed = False
+                since = math.inf if self._t_last is None else t - self._t_last
+                std = math.sqrt(self._var_last + (0.0 if self._t_last is None else c.walk**2 * since))
+            status = (f"estimator starting up (the first {c.settle_s:g} s are not read)" if settling else
+                      str(reading.status))
+            self.state = FrictionState(t=t, mu_hat=float(self._mu), mu_std=float(std), mu_raw=mu_raw,
+                                       raw_std=raw_std, informed=informed, excitation=float(exc),
+                                       since_informed_s=float(since), status=status)
+            return self.state
         mu_raw, raw_std = stiffness_to_friction(stiffness, stiffness_std, c.mu_ref, self.nominal, c.fallback_std)
         if c.tire == "peak":  # the bend of the tire curve, not its slope, tells the friction
             theta, s_theta = mu_raw / c.mu_ref, math.hypot(raw_std / c.mu_ref, c.model_std)

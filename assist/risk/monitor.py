@@ -369,7 +369,7 @@ class RiskMonitor:
         return float(dem[i] / mu), (float(d[i]), float(k[i]), float(dem[i])), math.sqrt(v2[i]), float(k.max())
 
     def update(self, t: float, stiffness, stiffness_std, vx: float, ay: float, forces=None,
-               path: PathAhead | None = None) -> RiskAssessment:
+               path: PathAhead | None = None, reading=None) -> RiskAssessment:
         """Assess one sample.
 
         Parameters
@@ -386,6 +386,9 @@ class RiskMonitor:
             Estimated lateral forces ``(Fyf, Fyr)`` [N].
         path : PathAhead, optional
             Curvature of the road ahead.
+        reading : FrictionReading, optional
+            The estimator's own friction reading (:meth:`FrictionEstimate.update`), instead of the
+            stiffness mapping.
         """
         c = self.config
         vx = _pos("vx", vx)
@@ -394,7 +397,7 @@ class RiskMonitor:
             if Fs.shape != (2,) or not np.all(np.isfinite(Fs)):
                 raise RiskInputError(f"forces must be two finite numbers (Fyf, Fyr) [N], got {forces!r}")
         fr: FrictionState = self.friction.update(t, stiffness, stiffness_std, ay,
-                                                 None if forces is None else G * Fs / self.fz)
+                                                 None if forces is None else G * Fs / self.fz, reading)
         mu, sd = fr.mu_hat, fr.mu_std
         mu_low = max(mu - c.confirm_sigmas * sd, c.mu_floor)
         F = np.abs(Fs) if forces is not None else self.fz * fr.excitation / G

@@ -121,7 +121,7 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
     ----------
     log : RideLog
     pipeline : RiskPipeline, optional
-        Default: the adaptive observer designed for ``noise_pct`` (else the sidecar's
+        Default: :func:`~assist.risk.pipeline.default_estimator` for ``tire``, designed for ``noise_pct`` (else the sidecar's
         ``noise_pct``, else 5 %) at the log's sample period, and the default monitor.
     noise_pct : float, optional
     use_kappa : bool
@@ -153,7 +153,8 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
         pct = noise_pct if noise_pct is not None else sidecar_noise_pct(log.meta)
         pct = DEFAULT_NOISE_PCT if pct is None else pct
         v = vehicle if vehicle is not None else vehicle_of_log(log.meta or {}, getattr(log, "path", None))
-        pipeline = RiskPipeline(default_estimator(pct, dt, v, np.asarray(c["vx"], dtype=float)), vehicle=v, tire=tire)
+        pipeline = RiskPipeline(default_estimator(pct, dt, v, np.asarray(c["vx"], dtype=float), tire=tire), vehicle=v,
+                                tire=tire)
     pipeline.reset()
     Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
     vx = np.asarray(c["vx"], dtype=float)
@@ -212,7 +213,7 @@ def plot_risk(run: RiskRun, path: str | Path | None = None, mu_true: np.ndarray 
     ax = axs[0]
     ax.fill_between(t, mu - 2 * sd, mu + 2 * sd, color="C0", alpha=0.2, lw=0, label="mu_hat +- 2 sigma")
     ax.plot(t, mu, color="C0", label="mu_hat")
-    ax.plot(t, np.where(inf, np.nan, mu), color="0.55", lw=2.0, label="held (not enough excitation)")
+    ax.plot(t, np.where(inf, np.nan, mu), color="0.55", lw=2.0, label="held (not read: the tires do not tell)")
     if mu_true is not None:
         ax.plot(t, mu_true, "k--", lw=1.2, label="true friction")
     ax.set(ylabel="friction [-]", title=title, ylim=(0, 1.4))

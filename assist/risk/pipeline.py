@@ -5,9 +5,13 @@ The estimator is pluggable: any object with ``update(y, tau, vx)`` (``y`` =
 held until the next sample), ``reset()``, and the properties ``stiffness``
 and ``stiffness_std`` ([N/rad], order ``C_alpha_f, C_gamma_f, C_alpha_r,
 C_gamma_r``); if it also has ``x_hat`` (the 8 states of model.md) its axle
-forces ``x_hat[6:8]`` give the per-axle utilisation. The default is the LPV
-adaptive observer of :mod:`assist.estimation.adaptive_observer` (sensitivity law),
-designed for the sensors' noise level (:func:`default_estimator`).
+forces ``x_hat[6:8]`` give the per-axle utilisation; if it has ``friction_reading``
+(:class:`assist.estimation.friction_imm.FrictionReading`), that reading is the
+friction and the stiffness is not mapped. The default (:func:`default_estimator`)
+is the friction filter of :mod:`assist.estimation.friction_imm` (tires that lose
+their peak on a wet road), or for ``tire="stiffness"`` the LPV adaptive observer
+of :mod:`assist.estimation.adaptive_observer` (sensitivity law); both designed for
+the sensors' noise level.
 
 Both online uses (:class:`assist.risk.wrapper.RiskWarningWrapper`) and the
 offline one (:func:`assist.risk.offline.assess_log`) go through
@@ -36,6 +40,8 @@ class MonitorInputs(NamedTuple):
     ay: float
     forces: np.ndarray | None
     path: PathAhead | None
+    #: the estimator's own friction reading (``friction_reading``), if it has one
+    reading: object = None
 
 
 #: The estimator's output channels, in the order of ``y``.
@@ -63,7 +69,31 @@ FRICTION_WALK = 0.05
 
 
 def default_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, vehicle: Vehicle | None = None,
-                      speeds: np.ndarray | None = None):
+                      speeds: np.ndarray | None = None, tire: str = "peak"):
+    """The estimator of the risk warning for tires whose friction scales ``tire`` (``"peak"``, the default:
+    :func:`friction_estimator`; ``"stiffness"``: :func:`stiffness_estimator`), designed for ``noise_pct`` %
+    sensor noise (``None``: the reference logs' sensors, as 0.5 %) at sample period ``dt`` [s] for
+    ``vehicle`` (default the reference scooter); ``speeds``: a log's speeds [m/s] (the observer's range)."""
+    if tire == "peak":
+        return friction_estimator(noise_pct, dt, vehicle)
+    if tire == "stiffness":
+        return stiffness_estimator(noise_pct, dt, vehicle, speeds)
+    raise ValueError(f"tire must be 'peak' or 'stiffness', got {tire!r}")
+
+
+def friction_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, vehicle: Vehicle | None = None):
+    """The friction filter for tires that lose their peak on a wet road
+    (:class:`assist.estimation.friction_imm.FrictionIMM`: models of the saturating tire over a grid of
+    frictions; it reads the road from the bend of the tire curve as soon as the tires carry load, which
+    a stiffness estimate linear in the state cannot). Noise as :func:`default_estimator`."""
+    from assist.estimation.friction_imm import FrictionIMM
+
+    pct = 0.5 if noise_pct is None else max(float(noise_pct), 0.5)
+    return FrictionIMM(noise_pct=pct, dt=round(float(dt), 9), vehicle=vehicle)
+
+
+def stiffness_estimator(noise_pct: float | None = 5.0, dt: float = 0.01, vehicle: Vehicle | None = None,
+                        speeds: np.ndarray | None = None):
     """The LPV adaptive observer for the risk warning: Kalman vertex gains
     (:func:`assist.estimation.adaptive_design.kalman_design`) and one friction scale for all four stiffnesses
     (``parametrisation="friction"``, [1]_ sec. II-C ``Theta = mu Theta_0``), sensitivity law with the
@@ -216,15 +246,17 @@ class RiskPipeline:
     Parameters
     ----------
     estimator : StiffnessEstimator, optional
-        Default: :func:`default_estimator` for ``vehicle``.
+        Default: :func:`default_estimator` for ``vehicle`` and ``tire``.
     monitor : RiskMonitor, optional
         Default: :class:`RiskMonitor` with its defaults for ``vehicle`` (its axle loads and nominal stiffnesses).
     road_bank : "auto", float or None
-        ``"auto"`` (default): the bank is estimated on line by :class:`BankEstimate` and given to
-        the estimator before every sample, if the estimator has a settable ``road_bank`` (as
-        :class:`~assist.estimation.adaptive_observer.AdaptiveObserver` has; others are left as they are). A
+        ``"auto"`` (default): an estimator that carries the bank as a state (``estimates_bank`` true, as
+        :class:`~assist.estimation.friction_imm.FrictionIMM`, the default for ``tire="peak"``) estimates it
+        itself; for one with a settable ``road_bank`` only (as
+        :class:`~assist.estimation.adaptive_observer.AdaptiveObserver`) the bank is estimated on line by
+        :class:`BankEstimate` and given to it before every sample; others are left as they are. A
         number [rad]: that bank, fixed (the estimator must take it). ``None``: leave the estimator as
-        it is (a level road for :func:`default_estimator`). Why on line by default: roads are built
+        it is (the friction filter estimates the bank; the adaptive observer rides a level road). Why on line by default: roads are built
         with a cross-fall of 0.02-0.04 rad, and a level-road estimator reads it as grip
         (an earlier evaluation with the stiffness reading, 20 dry rides on such banks: friction
         over-estimated by up to 45 % and a false danger in 9 of them with a level-road estimator;
@@ -239,7 +271,7 @@ class RiskPipeline:
 
     def __init__(self, estimator=None, monitor: RiskMonitor | None = None,
                  road_bank: float | str | None = "auto", vehicle: Vehicle | None = None, tire: str = "peak") -> None:
-        self.estimator = default_estimator(vehicle=vehicle) if estimator is None else estimator
+        self.estimator = default_estimator(vehicle=vehicle, tire=tire) if estimator is None else estimator
         if not isinstance(self.estimator, StiffnessEstimator):
             raise TypeError("estimator must have update(y, tau, vx), reset(), stiffness and stiffness_std; "
                             f"got {type(self.estimator).__name__}")
@@ -249,7 +281,8 @@ class RiskPipeline:
         self.bank_estimate: BankEstimate | None = None
         settable = hasattr(self.estimator, "road_bank")
         if road_bank == "auto":
-            if settable:
+            # an estimator that carries the bank (and the sensor offsets) as states needs no BankEstimate
+            if settable and not getattr(self.estimator, "estimates_bank", False):
                 self.bank_estimate = BankEstimate(dt=float(getattr(self.estimator, "dt", 0.01)))
         elif isinstance(road_bank, str):
             raise ValueError(f"road_bank must be 'auto', a number [rad] or None, got {road_bank!r}")
@@ -302,8 +335,10 @@ class RiskPipeline:
         #: what the monitor was fed (for :func:`assist.risk.offline.replay`)
         self.last_inputs = MonitorInputs(float(t), np.asarray(est.stiffness, dtype=float).copy(),
                                          np.asarray(est.stiffness_std, dtype=float).copy(), self._vx, float(y[4]),
-                                         None if forces is None else forces.copy(), path)
+                                         None if forces is None else forces.copy(), path,
+                                         getattr(est, "friction_reading", None))
         return self.monitor.update(*self.last_inputs)
 
 
-__all__ = ["BankEstimate", "MonitorInputs", "OUTPUTS", "RiskPipeline", "StiffnessEstimator", "default_estimator"]
+__all__ = ["BankEstimate", "MonitorInputs", "OUTPUTS", "RiskPipeline", "StiffnessEstimator", "default_estimator",
+           "friction_estimator", "stiffness_estimator"]

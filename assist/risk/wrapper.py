@@ -58,7 +58,7 @@ class RiskWarningWrapper(gym.Wrapper):
         A :class:`ptw_env.env.PTWRollEnv` (possibly wrapped): its observation
         layout and, for the map, its ``profile`` (``s``, ``kappa``) and ``dt``.
     pipeline : RiskPipeline, optional
-        Estimator and monitor (default: the adaptive observer designed for the
+        Estimator and monitor (default: the friction filter designed for the
         environment's vehicle and noise level, see :func:`assist.risk.pipeline.default_estimator`).
     use_map : bool
         Preview the road ahead from the scenario's curvature profile (default True).

@@ -1,0 +1,483 @@
+"""Road friction from the bend of the tire curve: an interacting-multiple-model filter over friction levels.
+
+Why (issue 20): on a wet road a measured tire keeps its small-slip stiffness and loses its peak
+(:mod:`ptw_env.friction` ``scaling="peak"``; Pacejka, *Tire and Vehicle Dynamics*, 3rd ed., 2012,
+sec. 3.2.2 and 4.3.2). A stiffness estimate linear in the state cannot see that until the tires slide
+(README, "Risk warning"). The filter here carries the saturating tire itself: each model ``j`` of the
+bank is the plant of :mod:`ptw_env.kernels` (model.md rows 1-8, the one right-hand side) with the steady
+force ``F_ss,k = Fmax_k,j tanh(F_lin,k / Fmax_k,j)``, ``Fmax_k,j = mu_j Fz_k`` (effects.md
+``tire_saturation``), for a grid of road frictions ``mu_j``. At the same slip the models differ by the
+bend of the tanh curve, so the measured lateral acceleration and rates tell them apart as soon as the
+tires carry load: at ``|F| = 0.3 Fz`` a drop from 0.9 to 0.45 takes 10 % off the force at that slip
+(``0.45 tanh(atanh(1/3) 0.9/0.45) = 0.270`` for 0.3), which the filter reads within a few tenths of a second.
+
+Interacting multiple models (Blom and Bar-Shalom, IEEE TAC 33(8), 1988, sec. III; Bar-Shalom, Li,
+Kirubarajan, *Estimation with Applications to Tracking and Navigation*, 2001, sec. 11.6.6)
+-----------------------------------------------------------------------------------------
+Models ``j = 1..J`` (one extended Kalman filter each on the 8 states of model.md), Markov switching
+``P(m_k = j | m_{k-1} = i) = Pi_ij``. Per sample ``k``: each filter's measurement update with ``y_k``
+(sequential scalar updates, Joseph form; a NaN channel is skipped) and its likelihood
+``Lambda_j = prod_r N(e_r; 0, S_r)``; mode probabilities ``p_j <- Lambda_j c_j / sum``; then the mixing
+``c_j = sum_i Pi_ij p_i``, ``x0_j = sum_i Pi_ij p_i x_i / c_j``, ``P0_j = sum_i (Pi_ij p_i / c_j) (P_i +
+(x_i - x0_j)(x_i - x0_j)^T)`` and each filter's prediction to ``t_{k+1}`` with the torque and speed held
+over the sample (RK4 of the mean over the plant's substeps, ``Phi P Phi^T + Q dt`` with ``Phi`` the
+product of fourth-order Taylor steps of the central-difference Jacobian, as in
+:class:`assist.estimation.identification.JointEKF`).
+
+Switching: a road's friction can change at any moment: with ``p = 1 - exp(-switch_rate dt)``
+(``switch_rate`` 3 /s by default), ``Pi_ij = p pi_j`` for ``i != j``, where ``pi`` is the stationary
+distribution of the chain (detailed balance holds, ``pi_i Pi_ij = pi_j Pi_ji``): model ``i`` is left at the
+rate ``switch_rate (1 - pi_i)`` (0.3 /s for the reference road, 2.9 /s for the others) and the
+probabilities relax to ``pi`` at the rate ``switch_rate``. ``pi`` gives the reference road ``prior_ref`` (0.9) and shares the rest
+evenly: with nothing to read (a straight) the probabilities return to ``pi`` within about ``1 /
+switch_rate`` s, so the filter forgets old evidence at that rate and a model error small against the
+sensors' noise cannot pile up over a long corner into a false reading.
+
+Friction grid: ``mu_j = mu_ref r^j``, ``j = 0..5``, ``r = 0.8`` (``grid_ratio``; 0.9 down to 0.29 for the
+reference road of :data:`ptw_env.friction.REFERENCE_FRICTION`; no road of the evaluation is on it but the
+reference).
+
+The reading (:attr:`FrictionIMM.friction_reading`) has two sides, split at ``lower mu_ref`` (``lower`` = 0.7):
+where the models below it hold ``decide`` (0.999) of the probability, the road is *lower*, ``mu = E[mu | mu_j
+<= lower mu_ref]`` with its standard deviation; where the models above it do, the road is the reference one,
+``mu = mu_ref``; otherwise nothing is read (the tires do not tell: a straight, a light corner). The level
+next to the reference (0.72) is on the reference's side: at the grip a dry urban ride uses (55 %) its
+evidence against the reference is a few nats per tenth of a second, as large as what the sensors' noise
+and the filter's model error give (on the calibration rides below, the models other than the reference
+held 0.95 of the probability at some instant on 14 of 159 rides on the reference road, 0.99 on 6), so a
+road above ``lower mu_ref`` (0.63) is not told from the reference. ``lower`` and ``decide`` were chosen on
+calibration rides (seeds 0-39 of the risk evaluation's ``dry``, ``dry_bank``, ``dry_offsets`` and
+``wet_corner``: 120 dry rides and 39 patches, a seed whose route has no corner of the drawn demand left
+out; the evaluation uses 1000-1039): with ``lower`` 0.7, no lower reading on the reference road (the dry
+rides, the wet ones before their patch) at ``decide`` 0.995 and 0.999 (2 rides at 0.99, 5 at 0.95), and
+36 of the 39 patches that begin in a corner read within 0.3 s (median 0.16 s); ``scripts/eval_friction_filter.py``,
+stored in ``docs/results/risk/friction_filter/``.
+
+Consistency: the comparison of the models means something only where one of them explains the sensors. The
+filter low-passes (``NIS_TAU_S`` = 1 s) the probability-weighted normalised innovation squared per channel read,
+:attr:`FrictionIMM.nis` (1 for a consistent filter; 0.75-0.83 median per ride, at most 1.01, on the simulated
+calibration rides, whose noise is white), and reads nothing while it is above
+:data:`assist.estimation.identification.NIS_EXPLAINED` (3, the joint EKF's rule). On the 14 real robot-bicycle
+rides it is 0.04-0.37 (median per ride; the sensors are quieter than the 5 % the filter assumes) except run
+04-009 (its 7-8 Hz steer-torque oscillation and brief saturation: 1.2 median, 6.0-9.6 where the lower frictions
+took 0.999 of the probability), whose lower reading is therefore not used (same script).
+
+History, said because it is how these numbers came: the first evaluation run of this filter (reading any
+model but the reference at 0.95) gave false cautions on 2 of 40 banked and 3 of 40 offset dry rides of the
+evaluation seeds (``docs/results/risk/first_imm_run/results.md``); the rule above was then chosen on the
+calibration seeds.
+
+Process noise: ``Q`` holds the model error per state; its intensities were set by maximum likelihood (a
+coordinate search over factors of the innovations' likelihood) on one dry calibration ride of the risk
+evaluation (urban, seed 0, 5 % noise, reference scooter; the evaluation uses seeds 1000-1039): the steer
+rate needs 0.3 rad/s/sqrt(s) (the rider's torque noise, which the log does not hold), the axle forces
+0.009 and 0.052 of their static loads per sqrt(s) (:data:`FORCE_NOISE`, scaled by the vehicle's loads).
+
+Units: states as model.md (rad, rad/s, m/s, N), ``mu`` dimensionless, times in s.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ptw_env.dynamics import compile_plant
+from ptw_env.friction import MU_RANGE, REFERENCE_FRICTION
+from ptw_env.integrate import substeps_for
+from ptw_env.kernels import advance, deriv, fold_vx, scratch
+from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
+from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
+
+from assist.estimation.identification import NIS_EXPLAINED, taylor_transition
+from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, build_lpv_model
+
+#: Process-noise intensities of the first six states (phi, delta, vy, r, phi_dot, delta_dot) [unit/sqrt(s)]
+#: (module docstring: maximum likelihood on a dry calibration ride).
+STATE_NOISE = (1e-3, 1e-4, 3e-3, 1e-3, 1e-2, 0.3)
+#: Process-noise intensities of the axle forces, in static axle loads per sqrt(s) (front, rear).
+FORCE_NOISE = (0.009, 0.052)
+#: States of each model: model.md's 8, the road bank [rad] and the yaw-rate gyro offset [rad/s]. A lateral
+#: accelerometer offset has no state of its own: it reads as the bank would (module docstring).
+N_STATES = 10
+#: Prior standard deviation of the road bank [rad] (roads are built with a cross-fall of 0.02-0.04).
+BANK_PRIOR = 0.04
+#: Random walk of the bank [rad/sqrt(s)] (the road changes along the ride: 0.02 rad in about 15 s).
+BANK_WALK = 0.005
+#: Prior standard deviation of the yaw-rate gyro offset, in the channel's noise standard deviations (as
+#: :data:`assist.estimation.identification.OFFSET_PRIOR_NOISE`).
+OFFSET_PRIOR = 5.0
+#: Sensor offsets the filter carries: the yaw-rate gyro's as a state, the lateral accelerometer's as the road bank
+#: it reads the same way (:data:`N_STATES`).
+CARRIED_OFFSETS = ("yaw_rate", "ay")
+#: Time constant of the low-pass of the normalised innovations squared [s] (:attr:`FrictionIMM.nis`).
+NIS_TAU_S = 1.0
+#: Random walk of an offset, in its prior standard deviation per sqrt(s) (a sensor's offset barely moves).
+OFFSET_WALK = 0.001
+
+
+class FrictionFilterError(ValueError):
+    """An option or input the friction filter cannot use."""
+
+
+@dataclass(frozen=True)
+class FrictionReading:
+    """What the tires say about the road right now.
+
+    Attributes
+    ----------
+    mu, std : float
+        Friction and its 1-sigma [-] (the posterior over the grid; meaningful when ``informed``).
+    informed : bool
+        True when one side (the reference road, or a lower friction) holds ``decide`` of the probability.
+    p_ref : float
+        Probability of the reference road [-].
+    status : str
+        Why, in words.
+    """
+
+    mu: float
+    std: float
+    informed: bool
+    p_ref: float
+    status: str
+
+
+@njit(cache=True)
+def _imm_update(X, P, prob, y, C, rvar, loglik, nis):
+    """Measurement update of each model and the mode probabilities (module docstring); ``nis[j]``: model
+    ``j``'s normalised innovations squared, summed over the channels read."""
+    J, n = X.shape
+    for j in range(J):
+        x = X[j].copy()
+        Pj = P[j].copy()
+        ll = 0.0
+        nis[j] = 0.0
+        for r in range(y.shape[0]):
+            yr = y[r]
+            if not np.isfinite(yr):
+                continue
+            h = C[r]
+            e = yr - h @ x
+            Ph = Pj @ h
+            S = rvar[r] + h @ Ph
+            ll += -0.5 * (e * e / S + math.log(2.0 * math.pi * S))
+            nis[j] += e * e / S
+            Kg = Ph / S
+            x = x + Kg * e
+            A = np.eye(n) - np.outer(Kg, h)
+            Pj = A @ Pj @ A.T + rvar[r] * np.outer(Kg, Kg)
+        X[j] = x
+        P[j] = 0.5 * (Pj + Pj.T)
+        loglik[j] = ll
+    mx = loglik.max()
+    s = 0.0
+    for j in range(J):
+        prob[j] = prob[j] * math.exp(loglik[j] - mx)
+        s += prob[j]
+    if not (s > 0.0 and np.isfinite(s)):
+        return False
+    for j in range(J):
+        prob[j] /= s
+    return True
+
+
+@njit(cache=True, inline="always")
+def _f_bank(z, M, c, cb, g, vx, isg, fmx, c2, out):
+    """``x'`` of model.md with the road bank ``z[8]`` a state (effects.md ``road_bank``: row 3's
+    ``-(M+m) g sin(beta)``, folded into ``c`` by ``cb sin(beta)``, and ``sin(phi - beta)``)."""
+    sb = np.sin(z[8])
+    for i in range(8):
+        c2[i] = c[i] + cb[i] * sb
+    deriv(z, M, c2, g, vx, isg, fmx, z[8], out)
+
+
+@njit(cache=True)
+def _imm_predict(X, P, prob, tau, vx, W, dW, cb, isg, FM, dt, nsub, Qc, fd, Pi):
+    """Mixing, then each model's prediction over ``dt`` (module docstring); False when a state is not finite.
+    States ``[x (8), beta, b_r]``: the bank and the gyro offset are constant (their noise in ``Qc``)."""
+    J, n = X.shape
+    cbar = np.zeros(J)
+    for j in range(J):
+        for i in range(J):
+            cbar[j] += Pi[i, j] * prob[i]
+    X0 = np.zeros((J, n))
+    P0 = np.zeros((J, n, n))
+    for j in range(J):
+        for i in range(J):
+            X0[j] += (Pi[i, j] * prob[i] / cbar[j]) * X[i]
+        for i in range(J):
+            d = X[i] - X0[j]
+            P0[j] += (Pi[i, j] * prob[i] / cbar[j]) * (P[i] + np.outer(d, d))
+    for j in range(J):
+        prob[j] = cbar[j]
+    M, c, g, k = scratch()
+    c2 = np.empty(8)
+    tmp = np.empty(n)
+    fp = np.empty(8)
+    fm = np.empty(8)
+    F = np.zeros((n, n))
+    for j in range(J):
+        x = X0[j].copy()
+        fmx = FM[j]
+        fold_vx(W, vx, tau, 0.0, M, c, g)  # the level road's fold; _f_bank adds the bank of the state given
+        for jj in range(9):  # the 8 states and the bank (the offset does not enter the dynamics)
+            for i in range(n):
+                tmp[i] = x[i]
+            tmp[jj] = x[jj] + fd[jj]
+            _f_bank(tmp, M, c, cb, g, vx, isg, fmx, c2, fp)
+            tmp[jj] = x[jj] - fd[jj]
+            _f_bank(tmp, M, c, cb, g, vx, isg, fmx, c2, fm)
+            for i in range(8):
+                F[i, jj] = (fp[i] - fm[i]) / (2.0 * fd[jj])
+        Phi = taylor_transition(F, dt / nsub, nsub)
+        P[j] = Phi @ P0[j] @ Phi.T + Qc * dt
+        Wb = W + dW * np.sin(x[8])  # the model's bank in its plant (effects.md road_bank, linear in sin(beta))
+        x8 = x[:8].copy()  # the mean: the simulator's own step (ptw_env.kernels.advance)
+        if not advance(x8, tau, vx, 0.0, Wb, isg, fmx, x[8], dt, nsub, M, c, g, k):
+            return False
+        x[:8] = x8
+        for i in range(n):
+            if not np.isfinite(x[i]):
+                return False
+        X[j] = x
+    return True
+
+
+def friction_grid(mu_ref: float = REFERENCE_FRICTION, ratio: float = 0.8, levels: int = 6) -> np.ndarray:
+    """``mu_ref ratio^j``, ``j = 0..levels-1`` (module docstring), kept inside :data:`ptw_env.friction.MU_RANGE`.
+
+    >>> friction_grid().round(3).tolist()
+    [0.9, 0.72, 0.576, 0.461, 0.369, 0.295]
+    """
+    if not (0.0 < ratio < 1.0) or int(levels) < 2:
+        raise FrictionFilterError(f"grid ratio must be in (0, 1) and levels >= 2, got {ratio!r}, {levels!r}")
+    g = float(mu_ref) * ratio ** np.arange(int(levels))
+    return g[g >= MU_RANGE[0]]
+
+
+class FrictionIMM:
+    """States and road friction by interacting multiple models (module docstring), one sample at a time.
+
+    The interface of :class:`assist.risk.pipeline.StiffnessEstimator` (``update(y, tau, vx)``, ``reset()``,
+    ``stiffness``, ``stiffness_std``, ``x_hat``, a settable ``road_bank``), plus :attr:`friction_reading`
+    and :attr:`probabilities`.
+
+    Parameters
+    ----------
+    noise_pct : float
+        Sensor noise the filter assumes, percent of the vehicle's channel ranges (default 5).
+    dt : float
+        Sample period [s] (default 0.01).
+    vehicle : Vehicle, optional
+        Default: the reference scooter.
+    mu_ref : float
+        Friction of the road the vehicle's tires refer to (default 0.9).
+    grid : sequence of float, optional
+        The frictions of the models, the first the reference road (default :func:`friction_grid`).
+    switch_rate : float
+        Rate of leaving a model [1/s] (default 3).
+    prior_ref : float
+        Stationary probability of the reference road (default 0.9).
+    decide : float
+        Probability one side must hold for a reading (default 0.999).
+    lower : float
+        Frictions at or below ``lower mu_ref`` are the *lower* side of the reading (default 0.7).
+
+    Examples
+    --------
+    >>> imm = FrictionIMM()
+    >>> imm.update([0.0, 0.0, 0.0, 0.0, 0.0], 0.0, 15.0)   # riding straight: nothing to read
+    >>> r = imm.friction_reading
+    >>> r.informed, round(r.p_ref, 2)
+    (False, 0.9)
+    """
+
+    def __init__(self, noise_pct: float = 5.0, dt: float = 0.01, vehicle: Vehicle | None = None,
+                 mu_ref: float = REFERENCE_FRICTION, grid=None, switch_rate: float = 3.0, prior_ref: float = 0.9,
+                 decide: float = 0.999, lower: float = 0.7) -> None:
+        for name, v in (("noise_pct", noise_pct), ("dt", dt), ("mu_ref", mu_ref), ("switch_rate", switch_rate)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v > 0):
+                raise FrictionFilterError(f"FrictionIMM {name} must be a positive number, got {v!r}")
+        for name, v in (("prior_ref", prior_ref), ("decide", decide), ("lower", lower)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (0.0 < v < 1.0):
+                raise FrictionFilterError(f"FrictionIMM {name} must be a number in (0, 1), got {v!r}")
+        self.vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
+        self.model = build_lpv_model(self.vehicle)
+        self.mu_ref = float(mu_ref)
+        g = friction_grid(self.mu_ref) if grid is None else np.asarray(grid, dtype=float).ravel()
+        if (g.size < 2 or not np.all(np.isfinite(g)) or np.any(g < MU_RANGE[0]) or np.any(g > MU_RANGE[1])
+                or g[0] != self.mu_ref or np.any(np.diff(g) >= 0)):
+            raise FrictionFilterError(f"grid must hold at least two decreasing frictions in {MU_RANGE}, the first "
+                                      f"mu_ref {self.mu_ref}, got {g.tolist()}")
+        self.grid = g
+        gaps = -np.diff(g)
+        self._band = np.r_[gaps[0], 0.5 * (gaps[:-1] + gaps[1:]), gaps[-1]] / math.sqrt(12.0)
+        self.dt = float(dt)
+        self.nsub = substeps_for(self.dt)
+        self.FM = np.array([compile_plant(self.vehicle, {"tire_saturation": {"mu_peak": float(m)}}).flat()[2][0]
+                            for m in g])
+        flat = compile_plant(self.vehicle).flat()
+        self.W, self.isg = flat[0][0], flat[1][0]
+        ref_bank = 0.1  # the bank enters the plant linearly in sin(beta) (effects.md road_bank)
+        W1 = compile_plant(self.vehicle, {"road_bank": {"bank_rad": ref_bank}}).flat()[0][0]
+        self.dW = np.ascontiguousarray((W1 - self.W) / math.sin(ref_bank))
+        self.cb = np.empty(8)  # its constant part per unit sin(beta)
+        fold_vx(self.dW, 1.0, 0.0, 0.0, np.empty((8, 8)), self.cb, np.empty((8, 2)))
+        sens = SensorConfig.from_percent(float(noise_pct), vehicle=self.vehicle)
+        rvar = np.array([sens.noise_std[c] ** 2 for c in OUTPUT_NAMES])
+        rvar[0] += (sens.delta_quantum or ENCODER_QUANTUM) ** 2 / 12.0
+        self.rvar = np.maximum(rvar, 1e-10)
+        C = np.zeros((len(OUTPUT_NAMES), N_STATES))
+        C[:, :8] = self.model.C
+        C[OUTPUT_NAMES.index("yaw_rate"), 9] = 1.0  # y_r = r + b_r: the offset's row
+        self.C = C
+        off0 = OFFSET_PRIOR * math.sqrt(self.rvar[OUTPUT_NAMES.index("yaw_rate")])
+        fz = np.array([self.vehicle.tires.Fzf, self.vehicle.tires.Fzr])
+        self._q = np.r_[STATE_NOISE, np.asarray(FORCE_NOISE) * fz, BANK_WALK, off0 * OFFSET_WALK]
+        self._p0 = np.r_[STATE_SCALE * 0.1, BANK_PRIOR, off0]
+        self.fd = np.r_[STATE_SCALE * 1e-4, 1e-5, 1e-5]
+        J = g.size
+        self.pi = np.r_[prior_ref, np.full(J - 1, (1.0 - prior_ref) / (J - 1))]
+        p = 1.0 - math.exp(-float(switch_rate) * self.dt)
+        Pi = p * np.tile(self.pi, (J, 1))
+        Pi[np.diag_indices(J)] = 0.0
+        Pi[np.diag_indices(J)] = 1.0 - Pi.sum(axis=1)
+        self.Pi = Pi
+        self.decide = float(decide)
+        self.lower = float(lower)
+        self.low = self.grid <= float(lower) * self.mu_ref  # the lower side of the reading
+        if not self.low.any():
+            raise FrictionFilterError(f"no friction of the grid {g.tolist()} is at or below lower x mu_ref = "
+                                      f"{lower * self.mu_ref:g}")
+        self.stiffness = self.model.theta0.copy()
+        self.stiffness_std = np.full(4, math.nan)
+        self._known_bank: float | None = None
+        self.reset()
+
+    @property
+    def estimates_bank(self) -> bool:
+        """True while the bank is a state of the filter (no known bank was set)."""
+        return self._known_bank is None
+
+    @property
+    def road_bank(self) -> float:
+        """The road's bank [rad]: the known one, else the filter's estimate (effects.md ``road_bank``).
+        Setting it makes the bank known (fixed in every model); ``None`` estimates it again."""
+        return float(self._known_bank) if self._known_bank is not None else self._bank_hat
+
+    @road_bank.setter
+    def road_bank(self, value) -> None:
+        if value is None:  # estimated again, from its prior
+            if self._known_bank is not None:
+                self._known_bank = None
+                self._P[:, 8, :] = 0.0
+                self._P[:, :, 8] = 0.0
+                self._P[:, 8, 8] = BANK_PRIOR**2
+            return
+        b = float(value)
+        if not (math.isfinite(b) and abs(b) < 0.5):
+            raise FrictionFilterError(f"road_bank must be a bank angle in rad, |road_bank| < 0.5, got {value!r}")
+        self._known_bank = b
+        self._bank_hat = b
+        self._X[:, 8] = b
+        self._P[:, 8, :] = 0.0
+        self._P[:, :, 8] = 0.0
+
+    @property
+    def yaw_rate_offset(self) -> float:
+        """The estimated offset of the yaw-rate gyro [rad/s] (after the last update)."""
+        return self._offset_hat
+
+    def reset(self) -> None:
+        """Zero states and offsets, the known bank (else zero), the stationary probabilities."""
+        J = self.grid.size
+        self._X = np.zeros((J, N_STATES))
+        self._P = np.tile(np.diag(self._p0**2), (J, 1, 1))
+        self._bank_hat, self._offset_hat = 0.0, 0.0
+        self._vx: float | None = None
+        if self._known_bank is not None:
+            self.road_bank = self._known_bank
+        self._prob = self.pi.copy()  # the predicted mode probabilities (the mixing's c_j)
+        #: the mode probabilities after the last update (order of :attr:`grid`)
+        self.probabilities = self.pi.copy()
+        self._ll = np.zeros(J)
+        self._nis = np.zeros(J)
+        #: normalised innovation squared per channel, probability-weighted, low-passed over ``NIS_TAU_S`` (1 when
+        #: the models explain the sensors)
+        self.nis = 1.0
+        self.x_hat = np.zeros(8)
+
+    def update(self, y, tau: float, vx: float) -> None:
+        """Take the outputs ``y`` at this sample (``[delta, yaw_rate, roll_rate, delta_rate, ay]``, NaN: a
+        dropout), then predict to the next one with the torque ``tau`` [N m] and speed ``vx`` [m/s] held (a
+        missing speed, NaN, holds the last one). On an error the filter is left as it was before the call."""
+        yv = np.asarray(y, dtype=float).ravel()
+        if yv.shape != (len(OUTPUT_NAMES),):
+            raise FrictionFilterError(f"y must hold {len(OUTPUT_NAMES)} outputs {OUTPUT_NAMES}, got {yv.shape}")
+        tau = float(tau)
+        if not math.isfinite(tau):
+            raise FrictionFilterError(f"tau must be a finite torque in N m, got {tau!r}")
+        v = float(vx)
+        if not math.isfinite(v):
+            if self._vx is None:
+                raise FrictionFilterError(f"vx is missing ({vx!r}) and no earlier speed is known")
+            v = self._vx
+        X, P, prob = self._X.copy(), self._P.copy(), self._prob.copy()  # committed only when both steps succeed
+        if not _imm_update(X, P, prob, yv, self.C, self.rvar, self._ll, self._nis):
+            raise FrictionFilterError("every model's likelihood vanished: the outputs are far outside the model")
+        post = prob.copy()
+        post_X = X.copy()
+        q = self._q.copy()
+        if self._known_bank is not None:
+            q[8] = 0.0
+        vc = min(max(v, self.vehicle.vmin), self.vehicle.vmax)
+        if not _imm_predict(X, P, prob, tau, vc, self.W, self.dW, self.cb, self.isg, self.FM, self.dt, self.nsub,
+                            np.diag(q**2), self.fd, self.Pi):
+            raise FrictionFilterError("the friction filter diverged (a state is not finite)")
+        self._X, self._P, self._prob, self._vx = X, P, prob, v
+        self.probabilities = post
+        self.x_hat = post @ post_X[:, :8]
+        self._bank_hat = float(post @ post_X[:, 8]) if self._known_bank is None else self._known_bank
+        self._offset_hat = float(post @ post_X[:, 9])
+        n_read = int(np.isfinite(yv).sum())
+        if n_read:  # the model's consistency: NIS per channel read, probability-weighted, low-passed
+            a = 1.0 - math.exp(-self.dt / NIS_TAU_S)
+            self.nis += a * (float(post @ self._nis) / n_read - self.nis)
+
+    @property
+    def friction_reading(self) -> FrictionReading:
+        """The reading after the last :meth:`update` (module docstring). Its ``std`` is the spread of the
+        posterior over the side read, each level standing for a uniform band around it as wide as the mean of
+        its gaps to its neighbours (std ``width / sqrt(12)``), so a level that takes all the probability still
+        says the grid's resolution."""
+        p = self.probabilities
+        p_ref = float(p[0])
+        low = float(p[self.low].sum())
+
+        def side(mask):
+            q = p[mask] / p[mask].sum()
+            mu = self.grid[mask]
+            m = float(q @ mu)
+            return m, float(math.sqrt(max(q @ (mu**2 + self._band[mask] ** 2) - m * m, 0.0)))
+
+        if self.nis > NIS_EXPLAINED:  # the models do not explain the sensors: their comparison says nothing
+            m, s = side(np.ones_like(self.low))
+            return FrictionReading(m, s, False, p_ref,
+                                   f"not read: the model does not explain the sensors (normalised innovation "
+                                   f"squared {self.nis:.1f} per channel, above {NIS_EXPLAINED:g})")
+        if 1.0 - low >= self.decide:
+            _, s = side(~self.low)
+            return FrictionReading(self.mu_ref, s, True, p_ref, f"the tires read the reference road (friction "
+                                   f"above {self.lower * self.mu_ref:.2f}: {1.0 - low:.3f})")
+        if low >= self.decide:
+            m, s = side(self.low)
+            return FrictionReading(m, s, True, p_ref, f"the tires read a lower friction ({low:.3f})")
+        m, s = side(np.ones_like(self.low))
+        return FrictionReading(m, s, False, p_ref, f"not read: the tires do not tell the road (P(lower) {low:.3f})")
+
+
+__all__ = ["CARRIED_OFFSETS", "FORCE_NOISE", "STATE_NOISE", "FrictionFilterError", "FrictionIMM", "FrictionReading", "friction_grid"]
