@@ -6,6 +6,7 @@ The scripts run as ``python scripts/NAME.py``, which puts this folder on ``sys.p
 from __future__ import annotations
 
 import argparse
+import json
 import os
 from pathlib import Path
 
@@ -66,3 +67,12 @@ def local_executors(workers: int) -> list[tuple[str, dict]]:
         print("(Dask rows skipped: pip install \"ptw-assist[cluster]\")")
         return out
     return out + [(f"Dask LocalCluster, {workers} workers", dict(workers=workers, scheduler="local"))]
+
+
+def write_results(out: Path, res: dict, md: str, done: str) -> None:
+    """``results.json`` (finite JSON, floats of numpy types as floats) and ``results.md`` in ``out``; the table
+    and the line ``done`` (e.g. "240 rides in 291 s") printed."""
+    (out / "results.json").write_text(json.dumps(res, indent=1, allow_nan=False, default=float) + "\n")
+    (out / "results.md").write_text(md)
+    print(md)
+    print(f"{done}; results in {out}/")

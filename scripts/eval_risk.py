@@ -47,7 +47,7 @@ from assist.risk.evaluation import (EVAL_KINDS, KINDS, LATENCY_LOAD, LATENCY_S, 
                                     run_case)
 from ptw_env.friction import SCALINGS
 from assist.risk.offline import plot_risk, replay
-from _outputs import add_overwrite, output_dir  # noqa: E402  (scripts/_outputs.py)
+from _outputs import add_overwrite, output_dir, write_results  # noqa: E402  (scripts/_outputs.py)
 
 #: Monitor variants compared on the same estimator outputs: the default (caution also when the grip is
 #: not confirmed at 2 sigma) and one that acts on the estimate alone.
@@ -70,7 +70,7 @@ def _one(args: tuple) -> dict:
     key = repr((bank, scaling))
     if key not in _PIPES:  # the friction reading that matches the tires: their bend (peak) or their slope
         tire = "peak" if scaling == "peak" else "stiffness"
-        _PIPES[key] = RiskPipeline(default_estimator(5.0), road_bank=bank,
+        _PIPES[key] = RiskPipeline(default_estimator(5.0, tire=tire), road_bank=bank,
                                    monitor=RiskMonitor(friction=FrictionEstimate(FrictionConfig(tire=tire))))
     pipe = _PIPES[key]
 
@@ -395,12 +395,9 @@ def main(argv: list[str] | None = None) -> int:
     res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "road_bank": _ROAD_BANK, "scaling": a.scaling,
            "variants": variants, "targets": tg, "summary": summary,
            "estimator": est, "rides": rides, "seconds": round(time.perf_counter() - t0, 1)}
-    (out / "results.json").write_text(json.dumps(res, indent=1, allow_nan=False, default=float) + "\n")
     md = "### targets (issue 20)\n\n" + targets_markdown(tg, a.scaling) + "\n" + "\n".join(f"### monitor: {v} {variants[v] or '(defaults)'}\n\n" + markdown(summary[v], a.seeds)
                    for v in variants) + "\n### friction estimate vs truth\n\n" + estimator_markdown(est)
-    (out / "results.md").write_text(md)
-    print(md)
-    print(f"{len(rides)} rides in {res['seconds']} s; results in {out}/")
+    write_results(out, res, md, f"{len(rides)} rides in {res['seconds']} s")
     return 0
 
 

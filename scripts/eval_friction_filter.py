@@ -1,0 +1,236 @@
+"""Calibration and checks of the friction filter (assist.estimation.friction_imm), the numbers its docstring and
+the README cite.
+
+1. Calibration rides (risk evaluation types ``dry``, ``dry_bank``, ``dry_offsets``, ``wet_corner``, seeds 0-39 by
+   default; the evaluation of ``scripts/eval_risk.py`` uses 1000-1039): for each decision rule (the lower side
+   ``mu <= lower x mu_ref``, the probability ``decide``), the rides on the reference road read as lower (a dry ride,
+   or a wet one before its patch, from 1 s on) and the corner patches read within 0.3 s of the drop; the
+   normalised innovation squared per channel (``FrictionIMM.nis``) on these simulated rides.
+2. The 14 measured robot-bicycle rides: ``nis`` per ride, the largest probability of the lower frictions, whether
+   the consistency gate held a reading back.
+3. The four vehicle presets: a lane change at the middle of the control range on a dry (0.9) and a wet (0.45) road, the largest
+   probability of the lower frictions (tests/test_presets.py asserts on it).
+4. A curve entered too fast (seed 0): the largest probability of the lower frictions in the warm-up curves, before
+   the critical curve's entry.
+5. A yaw gyro reading 0.01 rad/s high (urban ride, seed 11): the filter's offset estimate.
+
+Every ride is seeded; the same seeds give the same numbers. Example::
+
+    python scripts/eval_friction_filter.py --workers 2 --out docs/results/risk/friction_filter --overwrite
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from ptw_env.jobs import JobsError, run_jobs  # noqa: E402
+
+from _outputs import add_overwrite, output_dir, write_results  # noqa: E402  (scripts/_outputs.py)
+
+CAL_KINDS = ("dry", "dry_bank", "dry_offsets", "wet_corner")
+#: decision rules compared: (lower, decide); the filter's default is (0.7, 0.999)
+RULES = tuple((lo, d) for lo in (0.85, 0.7) for d in (0.95, 0.99, 0.995, 0.999))
+LATENCY_S = 0.3
+
+
+def _outputs(log):
+    from assist.risk.pipeline import OUTPUTS
+
+    c = log.columns
+    return np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS]), np.asarray(c["tau"], float), \
+        np.asarray(c["vx"], float)
+
+
+def _run(imm, log):
+    """Probabilities (K, J) and nis (K,) of the filter over a log."""
+    Y, tau, vx = _outputs(log)
+    P, N = np.zeros((len(Y), imm.grid.size)), np.zeros(len(Y))
+    for k in range(len(Y)):
+        imm.update(Y[k], tau[k], vx[k])
+        P[k], N[k] = imm.probabilities, imm.nis
+    return P, N
+
+
+def _calibration_ride(kind: str, seed: int) -> dict | None:
+    from assist.estimation.friction_imm import FrictionIMM
+    from assist.risk.evaluation import make_case
+    from ptw_env.ride import ride_scenario
+    from ptw_env.scenarios import ScenarioError
+    from ptw_env.sensors import SensorConfig
+
+    try:
+        case = make_case(kind, seed)
+    except ScenarioError:  # a route with no corner of the drawn demand: no wet_corner ride for this seed
+        return None
+    sens = {"sensors": SensorConfig.from_percent(5.0, bias=case.bias)} if case.bias else {"noise_pct": 5.0}
+    r = ride_scenario(case.scenario, effects=case.effects, seed=seed, friction=case.friction, scenario_seed=seed,
+                      hold_line=True, **sens)
+    imm = FrictionIMM()
+    P, N = _run(imm, r.log)
+    t = np.asarray(r.log.t)
+    drop = case.notes.get("patch_start_s")
+    ref = (t >= 1.0) & (t < (np.inf if drop is None else drop))
+    out = {"kind": kind, "seed": seed, "nis_median": float(np.median(N[t >= 1.0])), "nis_max": float(N[t >= 1.0].max()),
+           "rules": {}}
+    for lo, d in RULES:
+        low = P[:, imm.grid <= lo * imm.mu_ref].sum(axis=1)
+        rule = {"false": bool((low[ref] >= d).any())}
+        if drop is not None:
+            k = np.flatnonzero((t >= drop) & (low >= d))
+            rule["read_after_s"] = float(t[k[0]] - drop) if k.size else None
+        out["rules"][f"{lo}/{d}"] = rule
+    return out
+
+
+def _real_ride(path: str) -> dict:
+    from assist.estimation.friction_imm import FrictionIMM
+    from assist.estimation.identification import NIS_EXPLAINED
+    from ptw_env.logs import read_log, usable_part
+    from ptw_env.vehicle_files import vehicle_of_log
+
+    log, _ = usable_part(read_log(path))
+    imm = FrictionIMM(vehicle=vehicle_of_log(log.meta or {}, path), dt=float(log.dt))
+    P, N = _run(imm, log)
+    low = P[:, imm.low].sum(axis=1)
+    t = np.asarray(log.t) - float(log.t[0])
+    m = t >= 1.0
+    held = (low >= imm.decide) & (N > NIS_EXPLAINED) & m
+    return {"ride": Path(path).stem, "nis_median": float(np.median(N[m])), "p_lower_max": float(low[m].max()),
+            "held_back_samples": int(held.sum()), "nis_where_held": [float(np.min(N[held])), float(np.max(N[held]))]
+            if held.any() else None}
+
+
+def _preset(name: str) -> dict:
+    from assist.estimation.friction_imm import FrictionIMM
+    from ptw_env.friction import FrictionSchedule
+    from ptw_env.ride import ride_scenario
+    from ptw_env.scenarios import make_scenario
+    from ptw_env.vehicle_files import load_vehicle
+
+    v = load_vehicle(name)
+    lo, hi = v.control_range
+    kmh = round(3.6 * (lo + hi) / 2.0, 1)  # the middle of the control range, as tests/test_presets.py
+    out = {"vehicle": name}
+    for mu in (0.9, 0.45):
+        sc = make_scenario("double_lane_change", speed_kmh=kmh, run_in_s=6.0, duration_s=20.0)
+        r = ride_scenario(sc, vehicle=v, effects="tire_saturation:mu_peak=0.9", noise_pct=5.0, seed=3,
+                          friction=FrictionSchedule.constant(mu))
+        imm = FrictionIMM(vehicle=v, dt=float(r.log.dt))
+        P, _ = _run(imm, r.log)
+        out[f"p_lower_max_mu{mu}"] = float(P[int(1.0 / r.log.dt):, imm.low].sum(axis=1).max())
+    return out
+
+
+def _too_fast(seed: int) -> dict:
+    from assist.estimation.friction_imm import FrictionIMM
+    from assist.risk.evaluation import make_case
+    from ptw_env.ride import ride_scenario
+
+    case = make_case("too_fast", seed)
+    r = ride_scenario(case.scenario, effects=case.effects, seed=seed, friction=case.friction, scenario_seed=seed,
+                      hold_line=True, noise_pct=5.0)
+    imm = FrictionIMM()
+    P, _ = _run(imm, r.log)
+    t = np.asarray(r.log.t)
+    m = (t >= 1.0) & (t < case.notes["curve_entry_s"])
+    return {"seed": seed, "mu_road": case.notes["mu_road"], "p_lower_max_before_entry": float(P[m][:, imm.low].sum(axis=1).max())}
+
+
+def _gyro(seed: int) -> dict:
+    from assist.estimation.friction_imm import FrictionIMM
+    from ptw_env.ride import ride_scenario
+    from ptw_env.scenarios import make_scenario
+
+    r = ride_scenario(make_scenario("urban", duration_s=60.0), seed=seed,
+                      effects={"gyro_bias": {"yaw_rate_bias": 0.01, "roll_rate_bias": 0.0}})
+    imm = FrictionIMM()
+    _run(imm, r.log)
+    return {"seed": seed, "true_rad_s": 0.01, "estimate_rad_s": imm.yaw_rate_offset}
+
+
+def _job(what: str, arg):
+    return {"calibration": lambda: _calibration_ride(*arg), "real": lambda: _real_ride(arg),
+            "preset": lambda: _preset(arg), "too_fast": lambda: _too_fast(arg), "gyro": lambda: _gyro(arg)}[what]()
+
+
+def summarise(res: dict) -> str:
+    cal = [r for r in res["calibration"] if r is not None]
+    lines = ["## 1. Decision rule on the calibration rides", "",
+             f"{sum(1 for r in cal if r['kind'] != 'wet_corner')} dry rides and "
+             f"{sum(1 for r in cal if r['kind'] == 'wet_corner')} corner patches (seeds {res['seeds'][0]}-{res['seeds'][-1]}; "
+             "a seed whose route has no corner of the drawn demand has no wet_corner ride).", "",
+             "| lower | decide | rides on the reference road read as lower | corner patches read within 0.3 s | median [s] |",
+             "|---|---|---|---|---|"]
+    for lo, d in RULES:
+        key = f"{lo}/{d}"
+        false = sum(1 for r in cal if r["rules"][key]["false"])
+        lat = [r["rules"][key]["read_after_s"] for r in cal if r["kind"] == "wet_corner"]
+        lat = [np.inf if x is None else x for x in lat]
+        lines.append(f"| {lo} | {d} | {false} of {len(cal)} | {sum(1 for x in lat if x <= LATENCY_S)} of {len(lat)} | "
+                     f"{np.median(lat):.2f} |")
+    nm = [r["nis_median"] for r in cal]
+    lines += ["", f"nis on these rides: median per ride {min(nm):.2f}-{max(nm):.2f}, largest "
+              f"{max(r['nis_max'] for r in cal):.2f}", "", "## 2. Real robot-bicycle rides", "",
+              "| ride | nis median | largest P(lower) | samples held back by the gate | nis there |", "|---|---|---|---|---|"]
+    for r in res["real"]:
+        lines.append(f"| {r['ride']} | {r['nis_median']:.2f} | {r['p_lower_max']:.3f} | {r['held_back_samples']} | "
+                     f"{'-' if r['nis_where_held'] is None else '%.1f-%.1f' % tuple(r['nis_where_held'])} |")
+    lines += ["", "## 3. Presets, lane change at the middle of the control range (seed 3)", "",
+              "| vehicle | largest P(lower), dry 0.9 | wet 0.45 |", "|---|---|---|"]
+    for r in res["preset"]:
+        lines.append(f"| {r['vehicle']} | {r['p_lower_max_mu0.9']:.3f} | {r['p_lower_max_mu0.45']:.3f} |")
+    tf = res["too_fast"]
+    g = res["gyro"]
+    lines += ["", f"## 4. Curve too fast (seed {tf['seed']}, damp road {tf['mu_road']:.3f}): largest P(lower) before the "
+              f"critical curve's entry {tf['p_lower_max_before_entry']:.3f}", "",
+              f"## 5. Yaw gyro 0.01 rad/s high (urban, seed {g['seed']}): estimated {g['estimate_rad_s']:.4f} rad/s", ""]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--seeds", type=int, default=40, help="calibration seeds per ride type (default 40: 0-39)")
+    p.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a Dask scheduler (ptw_env.jobs)")
+    p.add_argument("--data", default=str(Path(__file__).resolve().parents[2] / "shared" / "data" / "robot_bicycle"),
+                   help="folder of the real robot-bicycle rides (default ../shared/data/robot_bicycle)")
+    p.add_argument("--out", default="out/friction_filter", help="output directory (default out/friction_filter/)")
+    add_overwrite(p)
+    a = p.parse_args(argv)
+    if a.seeds < 1:
+        p.error(f"--seeds must be >= 1, got {a.seeds}")
+    real = sorted(Path(a.data).glob("rb_*.csv"))
+    if not real:
+        p.error(f"--data: no rb_*.csv ride in {a.data}")
+    out = output_dir(p, a.out, a.overwrite)
+    from ptw_env.vehicle_files import vehicle_names
+
+    seeds = list(range(a.seeds))
+    jobs = ([(("calibration", k, s), ("calibration", (k, s))) for k in CAL_KINDS for s in seeds]
+            + [(("real", r.stem), ("real", str(r))) for r in real]
+            + [(("preset", n), ("preset", n)) for n in vehicle_names()]
+            + [(("too_fast", 0), ("too_fast", 0)), (("gyro", 11), ("gyro", 11))])
+    t0 = time.perf_counter()
+    try:
+        done = run_jobs(_job, jobs, workers=a.workers, scheduler=a.scheduler, desc="rides")
+    except JobsError as e:
+        p.error(str(e))
+    res = {"seeds": seeds, "rules": [list(r) for r in RULES],
+           "calibration": [v for k, v in done.items() if k[0] == "calibration"],
+           "real": [v for k, v in done.items() if k[0] == "real"],
+           "preset": [v for k, v in done.items() if k[0] == "preset"],
+           "too_fast": done[("too_fast", 0)], "gyro": done[("gyro", 11)],
+           "seconds": round(time.perf_counter() - t0, 1)}
+    write_results(out, res, summarise(res), f"{len(jobs)} jobs in {res['seconds']} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
