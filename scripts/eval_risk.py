@@ -239,8 +239,8 @@ def markdown(summary: dict, n: int) -> str:
         if w:
             lines.append("")
             late = w["too_late_onset_to_saturation_s"]
-            text = (f"{kind}: of the {w['events']} losses of grip that came at least {WARNABLE_S:g} s after the "
-                    f"friction dropped, {w['caution_0p5s']} had a caution at least 0.5 s ahead (lead min / median "
+            text = (f"{kind}: of the rides' first losses of grip, the {w['events']} that came at least {WARNABLE_S:g} s "
+                    f"after the friction dropped: {w['caution_0p5s']} had a caution at least 0.5 s ahead (lead min / median "
                     f"{w['lead_s']['min']} / {w['lead_s']['median']} s)")
             if late["n"]:
                 cases = "; ".join(

@@ -243,8 +243,8 @@ def test_a_drift_reported_but_not_used_is_not_removed(offset_log):
 
 def test_risk_carries_a_yaw_gyro_offset_and_can_remove_it_before_the_warning(tmp_path, capsys):
     """``ptw-assist risk``: a yaw gyro reading 0.01 rad/s high (effects.md ``gyro_bias``, simulated) is carried by
-    the friction filter as a state by default (its estimate within 0.002 rad/s; 0.0093 in
-    docs/results/risk/friction_filter/results.md), and the
+    the friction filter as a state by default (its estimate within 0.002 rad/s; the filter alone on this
+    ride: 0.0098, docs/results/risk/friction_filter/results.md), and the
     level-road pre-filter leaves the yaw rate alone (its default channels are the ones the filter does not
     carry); with ``--offsets all`` the pre-filter finds it within 5 % and removes it, said in a note, and the
     friction filter's own estimate is then near zero."""

@@ -101,8 +101,9 @@ def test_road_bank_is_estimated_and_a_known_one_is_held():
     """Truth: the ride's cross-fall (make_case dry_bank, seed 7: 0.0298 rad)."""
     case, r = _ride("dry_bank", 7)
     imm = FrictionIMM()
-    imm.road_bank = 0.0  # known, then estimated again: from its prior
+    imm.road_bank = 0.05  # known, then estimated again: from its prior, a level road
     imm.road_bank = None
+    assert imm.road_bank == 0.0
     imm, _, _ = _filter(r, imm)
     assert imm.estimates_bank
     assert imm.road_bank == pytest.approx(case.notes["bank_rad"], abs=0.005)
@@ -144,7 +145,8 @@ def test_grid_and_bad_options():
     assert g[0] == 0.9 and np.all(np.diff(g) < 0) and g[-1] >= 0.05
     assert friction_grid(0.9, 0.5, 10)[-1] >= 0.05  # cut at the lowest road friction
     for kw, match in (({"grid": [0.5, 0.9]}, "first mu_ref"), ({"grid": [0.9]}, "at least two"),
-                      ({"switch_rate": 0.0}, "switch_rate"), ({"decide": 1.0}, "decide"),
+                      ({"switch_rate": 0.0}, "switch_rate"), ({"decide": 1.0}, "decide"), ({"decide": 0.5}, "decide"),
+                      ({"grid": [0.9, 0.5, 0.6]}, "decreasing"),
                       ({"noise_pct": math.nan}, "noise_pct"), ({"prior_ref": True}, "prior_ref")):
         with pytest.raises(FrictionFilterError, match=match):
             FrictionIMM(**kw)
@@ -205,6 +207,12 @@ def test_missing_speed_is_held_a_bad_torque_refused_and_the_filter_left_as_it_wa
     twin.update(np.zeros(5), 1.0, 15.0)
     np.testing.assert_array_equal(imm.x_hat, twin.x_hat)  # the refused sample changed nothing
     assert not np.array_equal(before[0], imm.x_hat)
+    with pytest.raises(FrictionFilterError, match="likelihood vanished"):  # fails inside the update step
+        imm.update(np.array([0.0, 0.0, 0.0, 0.0, 1e300]), 1.0, 15.0)
+    imm.update(np.zeros(5), 1.0, 15.0)
+    twin.update(np.zeros(5), 1.0, 15.0)
+    np.testing.assert_array_equal(imm.x_hat, twin.x_hat)  # rolled back: the same as never given
+    np.testing.assert_array_equal(imm.probabilities, twin.probabilities)
 
 
 def test_a_model_that_does_not_explain_the_sensors_reads_nothing():

@@ -47,9 +47,8 @@ def _build(p: argparse.ArgumentParser):
                    help="caution also when the grip is not confirmed at K sigma (0-10; default 0, the estimate alone: "
                         "on tires that lose their peak on a wet road the grip is not confirmed short of the limit)")
     p.add_argument("--road-bank", type=road_bank_or_auto, default="auto", metavar="RAD|auto",
-                   help="bank (cross-fall) of the road: 'auto' (default) estimates it on line from the lateral "
-                        "acceleration and the yaw rate on straights; a number in rad fixes it (e.g. from "
-                        "'ptw-assist diagnose'; 0: level)")
+                   help="bank (cross-fall) of the road: 'auto' (default) estimates it on line (a state of the "
+                        "friction filter); a number in rad fixes it (e.g. from 'ptw-assist diagnose'; 0: level)")
     p.add_argument("--offsets", type=offsets_option, default=RISK_OFFSETS, metavar="CHANNELS",
                    help=OFFSETS_HELP + f" (for risk the default is {','.join(RISK_OFFSETS)}: the friction filter "
                                        "carries the yaw-gyro offset as a state and reads a lateral accelerometer offset "
@@ -111,6 +110,7 @@ def _build(p: argparse.ArgumentParser):
             js["road_bank_estimate_rad"] = banks
         elif a.road_bank == "auto" and getattr(est, "estimates_bank", False):  # the friction filter's own states
             js["road_bank_estimate_rad"] = {"final": est.road_bank}
+        if hasattr(est, "yaw_rate_offset"):
             js["yaw_rate_offset_estimate_rad_s"] = est.yaw_rate_offset
         last = res.assessments[-1]
         truth = truth_from_log(log, vehicle)
@@ -120,8 +120,10 @@ def _build(p: argparse.ArgumentParser):
             js["notes"] = trimmed
             for n in trimmed:
                 print(f"note: {n}")
-        if not banks and "yaw_rate_offset_estimate_rad_s" in js:
-            print(f"road bank and yaw-gyro offset estimated by the friction filter: {est.road_bank:.4f} rad, "
+        if "yaw_rate_offset_estimate_rad_s" in js:
+            print(f"{'road bank and ' if 'road_bank_estimate_rad' in js and not banks else ''}yaw-gyro offset "
+                  f"estimated by the friction filter: "
+                  f"{f'{est.road_bank:.4f} rad, ' if 'road_bank_estimate_rad' in js and not banks else ''}"
                   f"{est.yaw_rate_offset:+.4f} rad/s at the end")
         if banks:
             e = js["road_bank_estimate_rad"]

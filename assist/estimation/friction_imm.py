@@ -41,7 +41,7 @@ The reading (:attr:`FrictionIMM.friction_reading`) has two sides, split at ``low
 where the models below it hold ``decide`` (0.999) of the probability, the road is *lower*, ``mu = E[mu | mu_j
 <= lower mu_ref]`` with its standard deviation; where the models above it do, the road is the reference one,
 ``mu = mu_ref``; otherwise nothing is read (the tires do not tell: a straight, a light corner). The level
-next to the reference (0.72) is on the reference's side: at the grip a dry urban ride uses (55 %) its
+next to the reference (0.72) is on the reference's side: at the grip a dry urban ride uses (56 %) its
 evidence against the reference is a few nats per tenth of a second, as large as what the sensors' noise
 and the filter's model error give (on the calibration rides below, the models other than the reference
 held 0.95 of the probability at some instant on 14 of 159 rides on the reference road, 0.99 on 6), so a
@@ -67,11 +67,18 @@ model but the reference at 0.95) gave false cautions on 2 of 40 banked and 3 of 
 evaluation seeds (``docs/results/risk/first_imm_run/results.md``); the rule above was then chosen on the
 calibration seeds.
 
-Process noise: ``Q`` holds the model error per state; its intensities were set by maximum likelihood (a
-coordinate search over factors of the innovations' likelihood) on one dry calibration ride of the risk
-evaluation (urban, seed 0, 5 % noise, reference scooter; the evaluation uses seeds 1000-1039): the steer
+Process noise: ``Q`` holds the model error per state; its intensities were set during development by a
+coordinate search over factors of the innovations' likelihood on one dry calibration ride of the risk
+evaluation (urban, seed 0, 5 % noise, reference scooter; the evaluation uses seeds 1000-1039; that search is
+not kept as a script): the steer
 rate needs 0.3 rad/s/sqrt(s) (the rider's torque noise, which the log does not hold), the axle forces
 0.009 and 0.052 of their static loads per sqrt(s) (:data:`FORCE_NOISE`, scaled by the vehicle's loads).
+
+Bank and offsets: every model carries the road bank (prior :data:`BANK_PRIOR`, random walk :data:`BANK_WALK`)
+and the yaw-rate gyro's offset as states. The bank changes the plant (row 3's ``g sin(beta)``, ``sin(phi -
+beta)``), an offset only the reading, so loaded corners tell them apart. A lateral accelerometer offset ``o``
+has no state: on straights and in corners it adds to ``a_y`` as ``g sin(beta)`` does, so it reads as a bank of
+about ``o / g`` (0.1 m/s^2 as 0.010 rad).
 
 Units: states as model.md (rad, rad/s, m/s, N), ``mu`` dimensionless, times in s.
 """
@@ -302,9 +309,9 @@ class FrictionIMM:
         for name, v in (("noise_pct", noise_pct), ("dt", dt), ("mu_ref", mu_ref), ("switch_rate", switch_rate)):
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v > 0):
                 raise FrictionFilterError(f"FrictionIMM {name} must be a positive number, got {v!r}")
-        for name, v in (("prior_ref", prior_ref), ("decide", decide), ("lower", lower)):
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (0.0 < v < 1.0):
-                raise FrictionFilterError(f"FrictionIMM {name} must be a number in (0, 1), got {v!r}")
+        for name, v, lo in (("prior_ref", prior_ref, 0.0), ("decide", decide, 0.5), ("lower", lower, 0.0)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (lo < v < 1.0):
+                raise FrictionFilterError(f"FrictionIMM {name} must be a number in ({lo:g}, 1), got {v!r}")
         self.vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
         self.model = build_lpv_model(self.vehicle)
         self.mu_ref = float(mu_ref)
@@ -371,9 +378,11 @@ class FrictionIMM:
 
     @road_bank.setter
     def road_bank(self, value) -> None:
-        if value is None:  # estimated again, from its prior
+        if value is None:  # estimated again, from its prior (a level road, BANK_PRIOR)
             if self._known_bank is not None:
                 self._known_bank = None
+                self._X[:, 8] = 0.0
+                self._bank_hat = 0.0
                 self._P[:, 8, :] = 0.0
                 self._P[:, :, 8] = 0.0
                 self._P[:, 8, 8] = BANK_PRIOR**2
@@ -469,8 +478,9 @@ class FrictionIMM:
             return FrictionReading(m, s, False, p_ref,
                                    f"not read: the model does not explain the sensors (normalised innovation "
                                    f"squared {self.nis:.1f} per channel, above {NIS_EXPLAINED:g})")
-        if 1.0 - low >= self.decide:
-            _, s = side(~self.low)
+        if 1.0 - low >= self.decide:  # the std about mu_ref: the levels of this side are not told from it
+            q, mu = p[~self.low] / (1.0 - low), self.grid[~self.low]
+            s = float(math.sqrt(q @ ((mu - self.mu_ref) ** 2 + self._band[~self.low] ** 2)))
             return FrictionReading(self.mu_ref, s, True, p_ref, f"the tires read the reference road (friction "
                                    f"above {self.lower * self.mu_ref:.2f}: {1.0 - low:.3f})")
         if low >= self.decide:

@@ -24,8 +24,9 @@ Excitation (not enough: say so, do not guess)
 ---------------------------------------------
 Stiffness is only observable while the tires carry lateral force -- from the
 rider's steering torque on a straight (the steer and roll response to a known
-torque depends on the front tire: the default estimator of
-:mod:`assist.risk.pipeline` reads a friction drop there within seconds) or,
+torque depends on the front tire: the stiffness estimator of
+:mod:`assist.risk.pipeline` reads a friction drop there within seconds, on roads that scale the whole tire
+curve) or,
 far more, in a turn. An estimator whose reported standard deviation follows
 its information (the sensitivity law's ``Gamma`` grows by the random walk
 when nothing excites the tires, and shrinks when something does) needs no
@@ -70,7 +71,7 @@ utilisation ``w = |F| / Fmax``, so
 Its spread comes from ``theta +- s_theta`` with ``s_theta^2 = sigma_r^2 + model_std^2``:
 ``model_std`` (0.3) is the error
 of the linear stiffness estimate away from saturation that is not noise (the observer's model is
-linear in the lean and the speed; sensor offsets add to it): measured with the default estimator on
+linear in the lean and the speed; sensor offsets add to it): measured with the stiffness estimator on
 the reference scooter's evaluation rides of calibration seeds 0-7 (the evaluation uses seeds
 1000-1039), while the tires used 10-70 % of their grip ``theta`` went down to 0.76 on clean sensors
 (``dry``, ``dry_bank``; its median 0.94-0.98, the tanh secant 0.81-1.0) and to 0.63 with the yaw-gyro

@@ -1,8 +1,8 @@
 """Risk warning from the estimated road friction: utilisation, safe lean, safe curve speed, levels.
 
 :class:`RiskMonitor` is a plain object fed, once per sample, with a tire
-stiffness estimate (any estimator: :class:`assist.estimation.adaptive_observer.AdaptiveObserver`
-by default, see :mod:`assist.risk.pipeline`), the estimated axle forces, the
+stiffness estimate or an estimator's own friction reading (by default the friction filter
+:class:`assist.estimation.friction_imm.FrictionIMM`, see :mod:`assist.risk.pipeline`), the estimated axle forces, the
 speed, the measured lateral acceleration and the path ahead. It returns a
 :class:`RiskAssessment`. The aim is the one of Fouka, Nehaoua, Arioui [1]_
 (introduction): "the rider should be aware at each instant about the
