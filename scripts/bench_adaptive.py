@@ -10,6 +10,8 @@ Prints (and optionally writes) the median over ``--repeat`` runs of:
 * one observer update through :meth:`AdaptiveObserver.update` (Python call included)
   for both adaptive laws, and per sample of :meth:`AdaptiveObserver.run` on a whole log;
 * one step of the joint EKF (per sample of a whole log);
+* one update of the friction filter of the risk warning (:class:`assist.estimation.friction_imm.FrictionIMM`,
+  six models; Python call included);
 * one :meth:`ptw_env.env.PTWRollEnv.step` (the plant the observer rides along with).
 
 Timings depend on the machine; they are not asserted anywhere.
@@ -30,6 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 from assist.estimation.adaptive_design import design_adaptive_observer  # noqa: E402
 from assist.estimation.adaptive_observer import AdaptiveObserver  # noqa: E402
+from assist.estimation.friction_imm import FrictionIMM  # noqa: E402
 from assist.estimation.identification import JointEKF  # noqa: E402
 from ptw_env.env import PTWRollEnv  # noqa: E402
 from ptw_env.ride import ride_scenario  # noqa: E402
@@ -41,6 +44,16 @@ def _median(f, repeat: int) -> float:
     for _ in range(repeat):
         out.append(f())
     return float(np.median(out))
+
+
+def _updates_us(est, Y, tau, vx, n: int = 2000) -> float:
+    """Microseconds per ``est.update(y, tau, vx)`` (Python call included) over the first ``n`` samples, from a
+    reset."""
+    est.reset()
+    t0 = time.perf_counter()
+    for k in range(n):
+        est.update(Y[k], tau[k], vx[k])
+    return (time.perf_counter() - t0) / n * 1e6
 
 
 def main(argv=None) -> int:
@@ -69,20 +82,12 @@ def main(argv=None) -> int:
         obs = AdaptiveObserver(design, law=law)
         obs.run_log(r.log)  # compile
 
-        def one_update() -> float:
-            obs.reset()
-            n = 2000
-            t0 = time.perf_counter()
-            for k in range(n):
-                obs.update(Y[k], c["tau"][k], c["vx"][k])
-            return (time.perf_counter() - t0) / n * 1e6
-
         def per_sample_run() -> float:
             t0 = time.perf_counter()
             obs.run_log(r.log)
             return (time.perf_counter() - t0) / K * 1e6
 
-        res[f"observer_update_us[{law}]"] = _median(one_update, a.repeat)
+        res[f"observer_update_us[{law}]"] = _median(lambda: _updates_us(obs, Y, c["tau"], c["vx"]), a.repeat)
         res[f"observer_run_us_per_sample[{law}]"] = _median(per_sample_run, a.repeat)
 
     JointEKF().fit(r.log)
@@ -93,6 +98,11 @@ def main(argv=None) -> int:
         return (time.perf_counter() - t0) / K * 1e6
 
     res["joint_ekf_us_per_sample"] = _median(ekf_per_sample, a.repeat)
+
+    imm = FrictionIMM()
+    imm.update(Y[0], c["tau"][0], c["vx"][0])  # compile
+
+    res["friction_filter_update_us"] = _median(lambda: _updates_us(imm, Y, c["tau"], c["vx"]), a.repeat)
 
     env = PTWRollEnv(scenario="urban", noise_pct=5)
     env.reset(seed=0)
@@ -108,6 +118,7 @@ def main(argv=None) -> int:
 
     res["env_step_us"] = _median(env_step, a.repeat)
     res["observer_update_over_env_step[sensitivity]"] = res["observer_update_us[sensitivity]"] / res["env_step_us"]
+    res["friction_filter_update_over_env_step"] = res["friction_filter_update_us"] / res["env_step_us"]
     for k, v in res.items():
         print(f"{k:45s} {v:10.2f}")
     if a.json:
