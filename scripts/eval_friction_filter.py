@@ -40,17 +40,11 @@ RULES = tuple((lo, d) for lo in (0.85, 0.7) for d in (0.95, 0.99, 0.995, 0.999))
 LATENCY_S = 0.3
 
 
-def _outputs(log):
-    from assist.risk.pipeline import OUTPUTS
-
-    c = log.columns
-    return np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS]), np.asarray(c["tau"], float), \
-        np.asarray(c["vx"], float)
-
-
 def _run(imm, log):
     """Probabilities (K, J) and nis (K,) of the filter over a log."""
-    Y, tau, vx = _outputs(log)
+    from assist.risk.pipeline import output_matrix
+
+    Y, tau, vx = output_matrix(log.columns), np.asarray(log.columns["tau"], float), np.asarray(log.columns["vx"], float)
     P, N = np.zeros((len(Y), imm.grid.size)), np.zeros(len(Y))
     for k in range(len(Y)):
         imm.update(Y[k], tau[k], vx[k])
@@ -60,18 +54,14 @@ def _run(imm, log):
 
 def _calibration_ride(kind: str, seed: int) -> dict | None:
     from assist.estimation.friction_imm import FrictionIMM
-    from assist.risk.evaluation import make_case
-    from ptw_env.ride import ride_scenario
+    from assist.risk.evaluation import make_case, ride_case
     from ptw_env.scenarios import ScenarioError
-    from ptw_env.sensors import SensorConfig
 
     try:
         case = make_case(kind, seed)
     except ScenarioError:  # a route with no corner of the drawn demand: no wet_corner ride for this seed
         return None
-    sens = {"sensors": SensorConfig.from_percent(5.0, bias=case.bias)} if case.bias else {"noise_pct": 5.0}
-    r = ride_scenario(case.scenario, effects=case.effects, seed=seed, friction=case.friction, scenario_seed=seed,
-                      hold_line=True, **sens)
+    r = ride_case(case)
     imm = FrictionIMM()
     P, N = _run(imm, r.log)
     t = np.asarray(r.log.t)
@@ -130,12 +120,10 @@ def _preset(name: str) -> dict:
 
 def _too_fast(seed: int) -> dict:
     from assist.estimation.friction_imm import FrictionIMM
-    from assist.risk.evaluation import make_case
-    from ptw_env.ride import ride_scenario
+    from assist.risk.evaluation import make_case, ride_case
 
     case = make_case("too_fast", seed)
-    r = ride_scenario(case.scenario, effects=case.effects, seed=seed, friction=case.friction, scenario_seed=seed,
-                      hold_line=True, noise_pct=5.0)
+    r = ride_case(case)
     imm = FrictionIMM()
     P, _ = _run(imm, r.log)
     t = np.asarray(r.log.t)

@@ -16,27 +16,21 @@ from scipy.integrate import solve_ivp
 
 from assist.estimation.friction_imm import FrictionFilterError, FrictionIMM, friction_grid
 from assist.risk import FrictionEstimate
-from assist.risk.evaluation import LATENCY_S, make_case
-from assist.risk.pipeline import OUTPUTS, RiskPipeline, default_estimator
+from assist.risk.evaluation import LATENCY_S, make_case, ride_case
+from assist.risk.pipeline import OUTPUTS, RiskPipeline, default_estimator, output_matrix
 from ptw_env.dynamics import compile_plant
-from ptw_env.sensors import SensorConfig
 
 
 def _ride(kind: str, seed: int):
-    from ptw_env.ride import ride_scenario
-
     case = make_case(kind, seed)
-    sens = {"sensors": SensorConfig.from_percent(5.0, bias=case.bias)} if case.bias else {"noise_pct": 5.0}
-    r = ride_scenario(case.scenario, effects=case.effects, seed=seed, friction=case.friction, scenario_seed=seed,
-                      hold_line=True, **sens)
-    return case, r
+    return case, ride_case(case)
 
 
 def _filter(ride, imm: FrictionIMM | None = None):
     """Run the filter over a ride: the probability of the lower frictions and the readings, per sample."""
     imm = FrictionIMM() if imm is None else imm
     c = ride.log.columns
-    Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
+    Y = output_matrix(c)
     p_low, readings = [], []
     for k in range(len(ride.log.t)):
         imm.update(Y[k], float(c["tau"][k]), float(c["vx"][k]))
@@ -146,13 +140,18 @@ def test_grid_and_bad_options():
     assert friction_grid(0.9, 0.5, 10)[-1] >= 0.05  # cut at the lowest road friction
     for kw, match in (({"grid": [0.5, 0.9]}, "first mu_ref"), ({"grid": [0.9]}, "at least two"),
                       ({"switch_rate": 0.0}, "switch_rate"), ({"decide": 1.0}, "decide"), ({"decide": 0.5}, "decide"),
-                      ({"grid": [0.9, 0.5, 0.6]}, "decreasing"),
+                      ({"grid": [0.9, 0.5, 0.6]}, "decreasing"), ({"grid": "wet"}, "sequence of frictions"),
+                      ({"vehicle": "sharp1971"}, "must be a Vehicle"),
                       ({"noise_pct": math.nan}, "noise_pct"), ({"prior_ref": True}, "prior_ref")):
         with pytest.raises(FrictionFilterError, match=match):
             FrictionIMM(**kw)
     imm = FrictionIMM()
     with pytest.raises(FrictionFilterError, match="5 outputs"):
         imm.update([0.0, 0.0], 0.0, 15.0)
+    with pytest.raises(FrictionFilterError, match="5 numbers"):
+        imm.update(["a"] * 5, 0.0, 15.0)
+    with pytest.raises(FrictionFilterError, match="must be numbers"):
+        imm.update(np.zeros(5), None, 15.0)
     with pytest.raises(FrictionFilterError, match="road_bank"):
         imm.road_bank = 1.0
 
@@ -175,7 +174,7 @@ def test_real_rides_give_no_lower_reading_and_the_unexplained_one_is_held_back()
         log, _ = usable_part(read_log(path))
         imm = FrictionIMM(vehicle=vehicle_of_log(log.meta or {}, str(path)), dt=float(log.dt))
         c = log.columns
-        Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
+        Y = output_matrix(c)
         lower_read, held, nis = False, False, []
         for k in range(len(log.t)):
             imm.update(Y[k], float(c["tau"][k]), float(c["vx"][k]))

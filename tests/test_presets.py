@@ -166,10 +166,8 @@ def test_friction_filter_tells_a_wet_road_on_each_preset(name):
     frictions at or below 0.7 x 0.9 take at least 0.99 of the probability, on the dry road 0.9 at most 0.3
     (docs/results/risk/friction_filter/results.md, scripts/eval_friction_filter.py). Truth: the simulator's
     friction schedule."""
-    import numpy as np
-
     from assist.estimation.friction_imm import FrictionIMM
-    from assist.risk.pipeline import OUTPUTS
+    from assist.risk.pipeline import output_matrix
     from ptw_env.friction import FrictionSchedule
     from ptw_env.scenarios import make_scenario
 
@@ -180,7 +178,7 @@ def test_friction_filter_tells_a_wet_road_on_each_preset(name):
         ride = ride_scenario(sc, vehicle=v, effects="tire_saturation:mu_peak=0.9", noise_pct=5.0, seed=3,
                              friction=FrictionSchedule.constant(mu))
         c = ride.log.columns
-        Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
+        Y = output_matrix(c)
         imm = FrictionIMM(vehicle=v, dt=float(ride.log.dt))
         p = []
         for k in range(len(ride.log.t)):

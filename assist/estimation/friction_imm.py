@@ -315,10 +315,16 @@ class FrictionIMM:
         for name, v, lo in (("prior_ref", prior_ref, 0.0), ("decide", decide, 0.5), ("lower", lower, 0.0)):
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (lo < v < 1.0):
                 raise FrictionFilterError(f"FrictionIMM {name} must be a number in ({lo:g}, 1), got {v!r}")
+        if vehicle is not None and not isinstance(vehicle, Vehicle):
+            raise FrictionFilterError(f"vehicle must be a Vehicle (ptw_env.vehicle_files.load_vehicle), got "
+                                      f"{type(vehicle).__name__}")
         self.vehicle = REFERENCE_SCOOTER if vehicle is None else vehicle
         self.model = build_lpv_model(self.vehicle)
         self.mu_ref = float(mu_ref)
-        g = friction_grid(self.mu_ref) if grid is None else np.asarray(grid, dtype=float).ravel()
+        try:
+            g = friction_grid(self.mu_ref) if grid is None else np.asarray(grid, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise FrictionFilterError(f"grid must be a sequence of frictions, got {grid!r}") from None
         if (g.size < 2 or not np.all(np.isfinite(g)) or np.any(g < MU_RANGE[0]) or np.any(g > MU_RANGE[1])
                 or g[0] != self.mu_ref or np.any(np.diff(g) >= 0)):
             raise FrictionFilterError(f"grid must hold at least two decreasing frictions in {MU_RANGE}, the first "
@@ -427,10 +433,16 @@ class FrictionIMM:
         """Take the outputs ``y`` at this sample (``[delta, yaw_rate, roll_rate, delta_rate, ay]``, NaN: a
         dropout), then predict to the next one with the torque ``tau`` [N m] and speed ``vx`` [m/s] held (a
         missing speed, NaN, holds the last one). On an error the filter is left as it was before the call."""
-        yv = np.asarray(y, dtype=float).ravel()
+        try:
+            yv = np.asarray(y, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise FrictionFilterError(f"y must hold {len(OUTPUT_NAMES)} numbers {OUTPUT_NAMES}, got {y!r}") from None
         if yv.shape != (len(OUTPUT_NAMES),):
             raise FrictionFilterError(f"y must hold {len(OUTPUT_NAMES)} outputs {OUTPUT_NAMES}, got {yv.shape}")
-        tau = float(tau)
+        try:
+            tau, vx = float(tau), float(vx)
+        except (TypeError, ValueError):
+            raise FrictionFilterError(f"tau and vx must be numbers (N m, m/s), got {tau!r}, {vx!r}") from None
         if not math.isfinite(tau):
             raise FrictionFilterError(f"tau must be a finite torque in N m, got {tau!r}")
         v = float(vx)

@@ -537,21 +537,27 @@ def estimator_figures(res: CaseResult, rel_tol: float = 0.2, excitation_g: float
     return out
 
 
-def run_case(case: RideCase, pipeline=None) -> CaseResult:
-    """Ride ``case`` (:func:`ptw_env.ride.ride_scenario` with the friction schedule), add the route's
-    curvature to the log as ``kappa`` (the map), assess it (:func:`assist.risk.offline.assess_log`)
-    and compute the truth."""
+def ride_case(case: RideCase):
+    """Ride ``case``: :func:`ptw_env.ride.ride_scenario` with its friction schedule, effects, sensor noise and
+    offsets, the rider holding the line; the route's curvature added to the log as ``kappa`` (the map)."""
     from ptw_env.ride import ride_scenario
-
-    from .offline import assess_log
 
     sensors = {"sensors": SensorConfig.from_percent(case.noise_pct, bias=case.bias)} if case.bias else \
         {"noise_pct": case.noise_pct}
     ride = ride_scenario(case.scenario, effects=case.effects, seed=case.seed, friction=case.friction,
                          scenario_seed=case.seed, hold_line=True, **sensors)
-    c = ride.log.columns
     prof = case.scenario.profile(0.01, seed=case.seed)
-    c["kappa"] = np.asarray(prof.kappa[: len(ride.log.t)], dtype=float)
+    ride.log.columns["kappa"] = np.asarray(prof.kappa[: len(ride.log.t)], dtype=float)
+    return ride
+
+
+def run_case(case: RideCase, pipeline=None) -> CaseResult:
+    """Ride ``case`` (:func:`ride_case`), assess it (:func:`assist.risk.offline.assess_log`) and compute the
+    truth."""
+    from .offline import assess_log
+
+    ride = ride_case(case)
+    c = ride.log.columns
     run = assess_log(ride.log, pipeline=pipeline, noise_pct=case.noise_pct)
     mu = np.asarray(c["mu_true"], dtype=float)
     util = true_utilisation(ride.states, c["vx_true"], mu, case.friction, case.effects)
@@ -577,6 +583,7 @@ __all__ = [
     "estimator_figures",
     "lead_time",
     "make_case",
+    "ride_case",
     "run_case",
     "truth_from_log",
     "saturation_events",

@@ -36,7 +36,7 @@ from ptw_env.vehicle import Vehicle
 from ptw_env.vehicle_files import vehicle_of_log
 
 from .monitor import LEVELS, PathAhead, RiskAssessment, RiskConfig, RiskMonitor
-from .pipeline import OUTPUTS, MonitorInputs, RiskPipeline, default_estimator
+from .pipeline import OUTPUTS, MonitorInputs, RiskPipeline, default_estimator, output_matrix
 
 #: Sensor noise [% of range] the estimator is designed for when neither the caller nor the sidecar gives one
 #: (the papers' level).
@@ -156,7 +156,7 @@ def assess_log(log, pipeline: RiskPipeline | None = None, noise_pct: float | Non
         pipeline = RiskPipeline(default_estimator(pct, dt, v, np.asarray(c["vx"], dtype=float), tire=tire), vehicle=v,
                                 tire=tire)
     pipeline.reset()
-    Y = np.column_stack([np.asarray(c[n], dtype=float) for n in OUTPUTS])
+    Y = output_matrix(c)
     vx = np.asarray(c["vx"], dtype=float)
     try:  # ptw_env.logs: the one check of the inputs and the one reconstruction of the held speed
         tau, vfill = input_series(t, c["tau"], vx, str(getattr(log, "path", None) or "log"))

@@ -48,6 +48,11 @@ class MonitorInputs(NamedTuple):
 OUTPUTS = ("delta", "yaw_rate", "roll_rate", "delta_rate", "ay")
 
 
+def output_matrix(columns) -> np.ndarray:
+    """The measured outputs of a log's ``columns`` (K, 5), in the order of :data:`OUTPUTS`."""
+    return np.column_stack([np.asarray(columns[n], dtype=float) for n in OUTPUTS])
+
+
 @runtime_checkable
 class StiffnessEstimator(Protocol):
     """What :class:`RiskPipeline` needs from a tire-stiffness estimator."""
@@ -340,5 +345,5 @@ class RiskPipeline:
         return self.monitor.update(*self.last_inputs)
 
 
-__all__ = ["BankEstimate", "MonitorInputs", "OUTPUTS", "RiskPipeline", "StiffnessEstimator", "default_estimator",
+__all__ = ["BankEstimate", "MonitorInputs", "OUTPUTS", "output_matrix", "RiskPipeline", "StiffnessEstimator", "default_estimator",
            "friction_estimator", "stiffness_estimator"]
