@@ -7,7 +7,7 @@ the README cite.
       the default rule: the rides whose reference road (a dry ride, or a wet one before its patch, from 1 s on)
       took the lower frictions to 0.995 and to 0.999, the corner patches read within 0.3 s of the drop, the wet
       straights read at least 0.5 s before their first loss of grip (truth: ``|F_ss| >= 0.95 Fmax``; or read with
-      no loss), the median nis. Selection rule, stated before the table was made: among the filters with no
+      no loss), the median nis. Selection rule (written after a first exploration of this sweep on the same seeds): among the filters with no
       reference-road ride at 0.995 (a margin of one rule below the 0.999 the reading uses), the one with the most
       corner patches read within 0.3 s, then the most wet straights read early, then the larger process noise
       (the more robust to model error). The table says which it picks; ``friction_imm.NOISE_SCALE`` and the
