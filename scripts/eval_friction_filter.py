@@ -3,7 +3,7 @@ the README cite.
 
 1. Calibration rides (risk evaluation types ``dry``, ``dry_bank``, ``dry_offsets``, ``wet_corner``, ``wet_straight``,
    seeds 0-39 by default; the evaluation of ``scripts/eval_risk.py`` uses 1000-1039).
-   a. The filter's process noise and switching rate (:data:`FILTERS`: ``noise_scale`` x ``switch_rate``), each at
+   a. The filter's process noise and switching rate (:data:`FILTERS`: pairs of ``noise_scale``, ``switch_rate``), each at
       the default rule: the rides whose reference road (a dry ride, or a wet one before its patch, from 1 s on)
       took the lower frictions to 0.995 and to 0.999, the corner patches read within 0.3 s of the drop, the wet
       straights read at least 0.5 s before their first loss of grip (truth: ``|F_ss| >= 0.95 Fmax``; or read with
@@ -83,7 +83,7 @@ def _calibration_ride(kind: str, seed: int) -> dict | None:
         util = true_utilisation(r.states, c["vx_true"], c["mu_true"], case.friction, case.effects)
         loss = saturation_events(t, util)
         out["loss_s"] = float(loss[0]) if loss.size else None  # the ride's first loss of grip (truth)
-    for ns, sw in FILTERS:
+    for ns, sw in sweep():
         imm = FrictionIMM(noise_scale=ns, switch_rate=sw)
         P, N = _run(imm, r.log)
         low = P[:, imm.low].sum(axis=1)
@@ -105,6 +105,14 @@ def _calibration_ride(kind: str, seed: int) -> dict | None:
     return out
 
 
+def sweep() -> tuple[tuple[float, float], ...]:
+    """:data:`FILTERS`, with the filter's default appended when it is not one of them (its rules and nis are
+    reported)."""
+    from assist.estimation.friction_imm import NOISE_SCALE, SWITCH_RATE
+
+    return FILTERS if (NOISE_SCALE, SWITCH_RATE) in FILTERS else FILTERS + ((NOISE_SCALE, SWITCH_RATE),)
+
+
 def filter_table(cal: list[dict]) -> tuple[list[dict], str]:
     """Per filter of :data:`FILTERS` at the default rule: the reference-road rides whose lower frictions reached 0.995
     and 0.999, the corner patches read within 0.3 s (and the median), the wet straights read at least 0.5 s before
@@ -112,7 +120,7 @@ def filter_table(cal: list[dict]) -> tuple[list[dict], str]:
     docstring): among those with no reference-road ride at 0.995, the most corner patches within 0.3 s, then the
     most wet straights read, then the larger process noise."""
     rows = []
-    for ns, sw in FILTERS:
+    for ns, sw in sweep():
         key = f"{ns}/{sw}"
         refs = [r["filters"][key]["ref_max"] for r in cal if r["filters"][key]["ref_max"] is not None]
         lat = [np.inf if r["filters"][key]["read_s"] is None else r["filters"][key]["read_s"] - r["drop_s"]
@@ -276,7 +284,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(e))
     from assist.estimation.friction_imm import NOISE_SCALE, SWITCH_RATE
 
-    res = {"seeds": seeds, "rules": [list(r) for r in RULES], "filters": [list(f) for f in FILTERS],
+    res = {"seeds": seeds, "rules": [list(r) for r in RULES], "filters": [list(f) for f in sweep()],
            "default_filter": f"{NOISE_SCALE}/{SWITCH_RATE}",
            "calibration": [v for k, v in done.items() if k[0] == "calibration"],
            "real": [v for k, v in done.items() if k[0] == "real"],

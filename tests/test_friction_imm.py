@@ -168,7 +168,8 @@ def test_grid_and_bad_options():
     assert g[0] == 0.9 and np.all(np.diff(g) < 0) and g[-1] >= 0.05
     assert friction_grid(0.9, 0.5, 10)[-1] >= 0.05  # cut at the lowest road friction
     for kw, match in (({"grid": [0.5, 0.9]}, "first mu_ref"), ({"grid": [0.9]}, "at least two"),
-                      ({"switch_rate": 0.0}, "switch_rate"), ({"decide": 1.0}, "decide"), ({"decide": 0.5}, "decide"),
+                      ({"switch_rate": 0.0}, "switch_rate"), ({"noise_scale": -0.3}, "noise_scale"),
+                      ({"noise_scale": float("nan")}, "noise_scale"), ({"decide": 1.0}, "decide"), ({"decide": 0.5}, "decide"),
                       ({"grid": [0.9, 0.5, 0.6]}, "decreasing"), ({"grid": "wet"}, "sequence of frictions"),
                       ({"vehicle": "sharp1971"}, "must be a Vehicle"),
                       ({"noise_pct": math.nan}, "noise_pct"), ({"prior_ref": True}, "prior_ref")):

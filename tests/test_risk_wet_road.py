@@ -165,7 +165,8 @@ def test_wet_patch_in_a_corner_is_told_by_the_tires_at_once_and_cautioned_within
     road within 0.15 s (oracle); the grip is lost 0.16 s after the drop, and the warning cautions within
     LATENCY_S of the drop, on the friction filter's reading (the bend of the tire curve: a lower friction,
     read on the new road and not before it, within two of its standard deviations of the true friction then:
-    the patch's 2 m ramp takes 0.15 s, and the first reading comes while the road is at 0.507 on its way down)."""
+    the patch's 2 m ramp takes 0.15 s, and the first reading comes while the road is at 0.507 on its way down;
+    0.1 s later within two of them of 0.45)."""
     res = run_case(make_case("wet_corner", 0), pipeline)
     lat = res.summary()["latency"]
     assert lat["load_at_reference"] >= 0.2
@@ -175,6 +176,7 @@ def test_wet_patch_in_a_corner_is_told_by_the_tires_at_once_and_cautioned_within
     assert res.run.t[k] >= res.reference_time()
     mu, sd = res.run.series("mu_hat")[k], res.run.series("mu_std")[k]
     assert abs(mu - res.mu_true[k]) <= 2.0 * sd
+    assert abs(res.run.series("mu_hat")[k + 10] - 0.45) <= 2.0 * res.run.series("mu_std")[k + 10]  # on the patch
 
 
 def test_wet_patch_in_a_corner_that_does_not_slide_is_cautioned(pipeline):

@@ -46,8 +46,9 @@ evidence against the reference is as large as what the sensors' noise and the fi
 the calibration rides below, the lower side of ``lower`` 0.85 held 0.999 at some instant on 5 of 199 rides on
 the reference road, 0.95 on 30), so a road above ``lower mu_ref`` (0.63) is not told from the reference.
 ``lower`` and ``decide`` were chosen on calibration rides (seeds 0-39 of the risk evaluation's ``dry``,
-``dry_bank``, ``dry_offsets``, ``wet_corner`` and ``wet_straight``: 199 rides with reference road, a seed whose
-route has no corner of the drawn demand left out of ``wet_corner``; the evaluation uses 1000-1039): with
+``dry_bank``, ``dry_offsets``, ``wet_corner`` and ``wet_straight``: 199 stretches of reference road, 120 distinct
+routes (a wet ride before its patch is its seed's dry ride), a seed whose route has no corner of the drawn demand
+left out of ``wet_corner``; the evaluation uses 1000-1039): with
 ``lower`` 0.7, no lower reading on the reference road (the dry rides, the wet ones before their patch) at
 ``decide`` 0.995 and 0.999 (1 ride at 0.99, 8 at 0.95), and 38 of the 39 patches that begin in a corner read
 within 0.3 s (median 0.14 s); ``scripts/eval_friction_filter.py``, stored in
@@ -69,20 +70,21 @@ model but the reference at 0.95) gave false cautions on 2 of 40 banked and 3 of 
 evaluation seeds (``docs/results/risk/first_imm_run/results.md``); the rule above was then chosen on the
 calibration seeds.
 
-Process noise: ``Q`` holds the model error per state. Its shape was set during development by a coordinate
-search over factors of the innovations' likelihood on one dry calibration ride of the risk evaluation (urban,
-seed 0, 5 % noise, reference scooter; that search is not kept as a script): the steer rate 0.3 rad/s/sqrt(s)
-(the rider's torque noise, which the log does not hold), the axle forces 0.009 and 0.052 of their static loads
-per sqrt(s) (:data:`STATE_NOISE`, :data:`FORCE_NOISE`, scaled by the vehicle's loads). Its level,
-``noise_scale`` times that shape, and the switching rate were then chosen on the calibration rides (the same
-script, table 1a: ``noise_scale`` 1, 0.3, 0.1, 0.03 and ``switch_rate`` 3, 1, 0.5 /s), by a rule (written after
-a first exploration of the same sweep on the same seeds, so not blind to it): among the filters whose lower frictions held 0.995 on no reference-road ride, the most
-corner patches read within 0.3 s, then the most wet straights read at least 0.5 s before their loss of grip.
-It picks :data:`NOISE_SCALE` 0.3 at 3 /s: 38 of 39 corner patches (the full shape: 36), 7 of 40 wet straights
-(6), nis 0.87 (0.78: the full shape over-states the model error). Less noise or slower switching reads more
-wet straights (11-13 of 40) but also the reference road as lower (0.999 on 2-4 of 199 rides at ``noise_scale``
-0.1 and 0.03; 0.998 at 0.3 with 1 /s): the evidence that would warn earlier on a wet road is as large as the
-filter's own model error on a dry one.
+Process noise: ``Q`` holds the model error per state. Its shape was set during development by a coordinate search
+over factors of the innovations' likelihood on one dry calibration ride of the risk evaluation (urban, seed 0, 5 %
+noise, reference scooter; that search is not kept as a script): the steer rate 0.3 rad/s/sqrt(s) (the rider's
+torque noise, which the log does not hold), the axle forces 0.009 and 0.052 of their static loads per sqrt(s)
+(:data:`STATE_NOISE`, :data:`FORCE_NOISE`, scaled by the vehicle's loads). Its level, ``noise_scale`` times that
+shape, and the switching rate were then chosen on the calibration rides (the same script, table 1a, seven pairs:
+``noise_scale`` 1, 0.3, 0.1, 0.03 at ``switch_rate`` 3 /s, 0.3 and 0.1 at 1 /s, 0.1 at 0.5 /s), by a rule (written
+after a first exploration of the same sweep on the same seeds, so not blind to it): among the filters whose lower
+frictions held 0.995 on no reference-road ride, the most corner patches read within 0.3 s, then the most wet
+straights read at least 0.5 s before their loss of grip. It picks :data:`NOISE_SCALE` 0.3 at 3 /s: 38 of 39 corner
+patches (the full shape: 36), 7 of 40 wet straights (6; read 0.5 s before their loss or on a ride with none: 3 of
+the 7 ahead of a loss), nis 0.87 (0.78: the full shape over-states the model error). Less noise or slower switching
+reads more wet straights (11-13 of 40) but also the reference road as lower (0.999 on 2-4 of 199 stretches at
+``noise_scale`` 0.1 and 0.03; 0.998 at 0.3 with 1 /s): the evidence that would warn earlier on a wet road is as
+large as the filter's own model error on a dry one.
 
 Bank and offsets: every model carries the road bank (prior :data:`BANK_PRIOR`, random walk :data:`BANK_WALK`)
 and the yaw-rate gyro's offset as states. The bank changes the plant (row 3's ``g sin(beta)``, ``sin(phi -
