@@ -62,6 +62,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None)
     add_overwrite(ap)
     a = ap.parse_args(argv)
+    if a.repeat < 1:
+        ap.error(f"--repeat must be >= 1, got {a.repeat}")
     output_file(ap, "--json", a.json, a.overwrite)
     res: dict[str, float] = {}
 

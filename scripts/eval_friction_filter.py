@@ -39,6 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from assist.risk.evaluation import LATENCY_S  # noqa: E402
 from ptw_env.jobs import JobsError, run_jobs  # noqa: E402
 
 from _outputs import add_overwrite, output_dir, write_results  # noqa: E402  (scripts/_outputs.py)
@@ -48,7 +49,6 @@ CAL_KINDS = ("dry", "dry_bank", "dry_offsets", "wet_corner", "wet_straight")
 FILTERS = ((1.0, 3.0), (0.3, 3.0), (0.3, 1.0), (0.1, 3.0), (0.1, 1.0), (0.1, 0.5), (0.03, 3.0))
 #: decision rules compared: (lower, decide); the filter's default is (0.7, 0.999)
 RULES = tuple((lo, d) for lo in (0.85, 0.7) for d in (0.95, 0.99, 0.995, 0.999))
-LATENCY_S = 0.3
 LEAD_S = 0.5
 
 
@@ -71,8 +71,10 @@ def _calibration_ride(kind: str, seed: int) -> dict | None:
 
     try:
         case = make_case(kind, seed)
-    except ScenarioError:  # a route with no corner of the drawn demand: no wet_corner ride for this seed
-        return None
+    except ScenarioError:
+        if kind != "wet_corner":
+            raise
+        return None  # a route with no corner of the drawn demand: no wet_corner ride for this seed
     r = ride_case(case)
     t = np.asarray(r.log.t)
     c = r.log.columns
@@ -269,6 +271,13 @@ def main(argv: list[str] | None = None) -> int:
     real = sorted(Path(a.data).glob("rb_*.csv"))
     if not real:
         p.error(f"--data: no rb_*.csv ride in {a.data}")
+    from ptw_env.logs import LogFormatError, read_log
+
+    for r in real:  # before the rides: a log that cannot be read stops the run here, not after it
+        try:
+            read_log(str(r))
+        except (LogFormatError, OSError) as e:
+            p.error(f"--data: {e}")
     out = output_dir(p, a.out, a.overwrite)
     from ptw_env.vehicle_files import vehicle_names
 

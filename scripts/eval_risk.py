@@ -375,13 +375,16 @@ def main(argv: list[str] | None = None) -> int:
         except argparse.ArgumentTypeError as e:
             p.error(f"--road-bank: 'auto', 'none' or {e}")
     kinds = [k for k in a.kinds.split(",") if k]
+    if not kinds:
+        p.error(f"--kinds: no ride type given (known: {', '.join(KINDS)})")
     bad = [k for k in kinds if k not in KINDS]
     if bad:
         p.error(f"--kinds: unknown ride type(s) {', '.join(bad)} (known: {', '.join(KINDS)})")
     if a.seeds < 1 or a.first_seed < 0:
         p.error(f"--seeds must be >= 1 and --first-seed >= 0 (seeds are non-negative), got {a.seeds}, {a.first_seed}")
-    if a.figure_seed is not None and a.figure_seed < 0:
-        p.error(f"--figure-seed must be >= 0, got {a.figure_seed}")
+    if a.figure_seed is not None and not a.first_seed <= a.figure_seed < a.first_seed + a.seeds:
+        p.error(f"--figure-seed must be one of the seeds run, {a.first_seed}-{a.first_seed + a.seeds - 1}, got "
+                f"{a.figure_seed}")
     out = output_dir(p, a.out, a.overwrite)
     fseed = a.first_seed if a.figure_seed is None else a.figure_seed
     jobs = [(k, s, str(out / f"timeline_{k}.png") if s == fseed else None)

@@ -156,7 +156,7 @@ def test_risk_reads_the_friction_of_each_preset(name):
 
 @pytest.mark.parametrize("name", [
     "reference-scooter", "sharp1971", "cossalter-sport-touring",
-    pytest.param("robot-bicycle", marks=pytest.mark.xfail(strict=True, reason=(
+    pytest.param("robot-bicycle", marks=pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
         "measured (docs/results/risk/friction_filter/results.md): on the bicycle's lane change the lower "
         "frictions take about as much of the probability on the wet road as on the dry one: its forces tell "
         "the bend of the curve too little against its sensors' noise")))])

@@ -129,7 +129,7 @@ from ptw_env.vehicle import PHI_DOT, R, DELTA_DOT
 
 from assist.estimation.adaptive_design import AdaptiveObserverDesign, default_design
 from assist.estimation.identifiability import PARAMETRISATIONS
-from assist.estimation.lpv_model import OUTPUT_NAMES, THETA_NAMES, LPVModel, chi_entry
+from assist.estimation.lpv_model import OUTPUT_NAMES, THETA_NAMES, LPVModel, bank_column, check_bank, chi_entry
 
 # --------------------------------------------------------------------------- compiled kernels
 # Filter bank of the paper's law (one H(s) per signal; f[k, 0] = H u, f[k, 1] = s H u):
@@ -626,13 +626,12 @@ class AdaptiveObserver:
             g = self.gain.gamma
         else:
             g = np.zeros(4)
-        _check_bank(road_bank)
+        check_bank(road_bank, ObserverInputError)
         # a known road bank (effects.md road_bank) enters the plant's constant column (row 3's
         # -M g sin(beta), through E^-1) linearly in sin(beta), and the sine terms as the angle
         plant = compile_plant(m.vehicle)
         W, s, f, b = plant.flat()
-        W1 = compile_plant(m.vehicle, {"road_bank": {"bank_rad": _BANK_REF}}).flat()[0]
-        self._W0, self._dW = W[0].copy(), (W1[0] - W[0]) / math.sin(_BANK_REF)
+        self._W0, self._dW = bank_column(m.vehicle)
         w = m._w()
         v = m.vehicle
         idx = list((R, PHI_DOT, DELTA_DOT))
@@ -661,7 +660,7 @@ class AdaptiveObserver:
 
     @road_bank.setter
     def road_bank(self, value: float) -> None:
-        _check_bank(value)
+        check_bank(value, ObserverInputError)
         self._p["W"] = self._W0 + math.sin(value) * self._dW
         self._p["bank"] = float(value)
         self._args = tuple(self._p.values())
@@ -774,14 +773,6 @@ class AdaptiveObserver:
         return self.run(log.t, Y, c["tau"], c["vx"], interpolate_speed=interpolate_speed)
 
 
-#: Bank at which the plant's bank column is sampled (it is linear in sin(bank)).
-_BANK_REF = 0.1
-
-
-def _check_bank(value) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or abs(value) >= 0.5:
-        raise ObserverInputError(f"road_bank must be a bank angle in rad, |road_bank| < 0.5, got {value!r}")
 
 
 def effective_noise(design: AdaptiveObserverDesign, vx: float | None = None) -> np.ndarray:

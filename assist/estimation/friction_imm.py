@@ -114,8 +114,8 @@ from ptw_env.kernels import advance, deriv, fold_vx, scratch
 from ptw_env.sensors import ENCODER_QUANTUM, SensorConfig
 from ptw_env.vehicle import REFERENCE_SCOOTER, Vehicle
 
-from assist.estimation.identification import NIS_EXPLAINED, taylor_transition
-from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, build_lpv_model
+from assist.estimation.identification import NIS_EXPLAINED, OFFSET_PRIOR_NOISE, taylor_transition
+from assist.estimation.lpv_model import OUTPUT_NAMES, STATE_SCALE, bank_column, build_lpv_model, check_bank
 
 #: Process-noise intensities of the first six states (phi, delta, vy, r, phi_dot, delta_dot) [unit/sqrt(s)]
 #: (module docstring: their shape by maximum likelihood on a dry ride; the filter scales them by ``noise_scale``).
@@ -134,9 +134,6 @@ N_STATES = 10
 BANK_PRIOR = 0.04
 #: Random walk of the bank [rad/sqrt(s)] (the road changes along the ride: 0.02 rad in about 15 s).
 BANK_WALK = 0.005
-#: Prior standard deviation of the yaw-rate gyro offset, in the channel's noise standard deviations (as
-#: :data:`assist.estimation.identification.OFFSET_PRIOR_NOISE`).
-OFFSET_PRIOR = 5.0
 #: Sensor offsets the filter carries: the yaw-rate gyro's as a state, the lateral accelerometer's as the road bank
 #: it reads the same way (:data:`N_STATES`).
 CARRIED_OFFSETS = ("yaw_rate", "ay")
@@ -280,8 +277,11 @@ def friction_grid(mu_ref: float = REFERENCE_FRICTION, ratio: float = 0.8, levels
     >>> friction_grid().round(3).tolist()
     [0.9, 0.72, 0.576, 0.461, 0.369, 0.295]
     """
-    if not (0.0 < ratio < 1.0) or int(levels) < 2:
-        raise FrictionFilterError(f"grid ratio must be in (0, 1) and levels >= 2, got {ratio!r}, {levels!r}")
+    real = (lambda v: not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(v))
+    if not (real(mu_ref) and MU_RANGE[0] <= mu_ref <= MU_RANGE[1]) or not (real(ratio) and 0.0 < ratio < 1.0) \
+            or not (isinstance(levels, numbers.Integral) and not isinstance(levels, bool) and levels >= 2):
+        raise FrictionFilterError(f"friction grid needs mu_ref in {MU_RANGE}, a ratio in (0, 1) and an integer number "
+                                  f"of levels >= 2, got {mu_ref!r}, {ratio!r}, {levels!r}")
     g = float(mu_ref) * ratio ** np.arange(int(levels))
     return g[g >= MU_RANGE[0]]
 
@@ -333,6 +333,8 @@ class FrictionIMM:
                         ("noise_scale", noise_scale)):
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (math.isfinite(v) and v > 0):
                 raise FrictionFilterError(f"FrictionIMM {name} must be a positive number, got {v!r}")
+        if dt > 0.1:  # the EKF linearises over one sample; the other designs take (0, 0.1] s too
+            raise FrictionFilterError(f"FrictionIMM dt must lie in (0, 0.1] s, got {dt!r}")
         for name, v, lo in (("prior_ref", prior_ref, 0.0), ("decide", decide, 0.5), ("lower", lower, 0.0)):
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not (lo < v < 1.0):
                 raise FrictionFilterError(f"FrictionIMM {name} must be a number in ({lo:g}, 1), got {v!r}")
@@ -357,11 +359,8 @@ class FrictionIMM:
         self.nsub = substeps_for(self.dt)
         self.FM = np.array([compile_plant(self.vehicle, {"tire_saturation": {"mu_peak": float(m)}}).flat()[2][0]
                             for m in g])
-        flat = compile_plant(self.vehicle).flat()
-        self.W, self.isg = flat[0][0], flat[1][0]
-        ref_bank = 0.1  # the bank enters the plant linearly in sin(beta) (effects.md road_bank)
-        W1 = compile_plant(self.vehicle, {"road_bank": {"bank_rad": ref_bank}}).flat()[0][0]
-        self.dW = np.ascontiguousarray((W1 - self.W) / math.sin(ref_bank))
+        self.isg = compile_plant(self.vehicle).flat()[1][0]
+        self.W, self.dW = bank_column(self.vehicle)
         self.cb = np.empty(8)  # its constant part per unit sin(beta)
         fold_vx(self.dW, 1.0, 0.0, 0.0, np.empty((8, 8)), self.cb, np.empty((8, 2)))
         sens = SensorConfig.from_percent(float(noise_pct), vehicle=self.vehicle)
@@ -372,7 +371,7 @@ class FrictionIMM:
         C[:, :8] = self.model.C
         C[OUTPUT_NAMES.index("yaw_rate"), 9] = 1.0  # y_r = r + b_r: the offset's row
         self.C = C
-        off0 = OFFSET_PRIOR * math.sqrt(self.rvar[OUTPUT_NAMES.index("yaw_rate")])
+        off0 = OFFSET_PRIOR_NOISE * math.sqrt(self.rvar[OUTPUT_NAMES.index("yaw_rate")])
         fz = np.array([self.vehicle.tires.Fzf, self.vehicle.tires.Fzr])
         self.noise_scale = float(noise_scale)
         self._q = np.r_[self.noise_scale * np.r_[STATE_NOISE, np.asarray(FORCE_NOISE) * fz], BANK_WALK, off0 * OFFSET_WALK]
@@ -418,9 +417,7 @@ class FrictionIMM:
                 self._P[:, :, 8] = 0.0
                 self._P[:, 8, 8] = BANK_PRIOR**2
             return
-        b = float(value)
-        if not (math.isfinite(b) and abs(b) < 0.5):
-            raise FrictionFilterError(f"road_bank must be a bank angle in rad, |road_bank| < 0.5, got {value!r}")
+        b = check_bank(value, FrictionFilterError)
         self._known_bank = b
         self._bank_hat = b
         self._X[:, 8] = b

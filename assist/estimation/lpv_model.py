@@ -86,6 +86,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -511,7 +512,41 @@ def chi_entry(x, vx, H0, H1, j):
     return acc
 
 
+def bank_column(vehicle) -> tuple[np.ndarray, np.ndarray]:
+    """``(W0, dW)``: the plant's flat coefficients on a level road and their change per unit ``sin(beta)`` of the
+    road bank (effects.md ``road_bank``: the bank enters the constant column, row 3's ``-M g sin(beta)`` through
+    ``E^-1``, linearly in ``sin(beta)``), so ``W(beta) = W0 + sin(beta) dW``; sampled at 0.1 rad."""
+    from ptw_env.dynamics import compile_plant
+
+    ref = 0.1
+    w0 = compile_plant(vehicle).flat()[0][0]
+    w1 = compile_plant(vehicle, {"road_bank": {"bank_rad": ref}}).flat()[0][0]
+    return w0.copy(), np.ascontiguousarray((w1 - w0) / math.sin(ref))
+
+
+def check_bank(value, error: type[Exception] = ValueError) -> float:
+    """A road bank [rad] as a float, or ``error`` naming the value: a real number (not a bool or a string) inside
+    the open range effects.md gives ``road_bank:bank_rad`` (``ptw_env.effects.VOCABULARY``, |bank| < 0.5).
+
+    >>> check_bank(0.05)
+    0.05
+    >>> check_bank("0.05")
+    Traceback (most recent call last):
+    ...
+    ValueError: road_bank must be a bank angle in rad, |road_bank| < 0.5, got '0.05'
+    """
+    from ptw_env.effects import VOCABULARY
+
+    _, _, lo, hi = VOCABULARY["road_bank"]["bank_rad"]
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value)
+            or not lo < value < hi):
+        raise error(f"road_bank must be a bank angle in rad, |road_bank| < {hi:g}, got {value!r}")
+    return float(value)
+
+
 __all__ = [
+    "bank_column",
+    "check_bank",
     "DELTA_MAX",
     "LPVModel",
     "LPVModelError",
