@@ -207,8 +207,9 @@ def test_grid_and_bad_options():
         imm.update([0.0, 0.0], 0.0, 15.0)
     with pytest.raises(FrictionFilterError, match="5 numbers"):
         imm.update(["a"] * 5, 0.0, 15.0)
-    with pytest.raises(FrictionFilterError, match="must be numbers"):
-        imm.update(np.zeros(5), None, 15.0)
+    for tau, vx in ((None, 15.0), (0.0, "15"), (0.0, True), (b"1", 15.0)):
+        with pytest.raises(FrictionFilterError, match="must be numbers"):
+            imm.update(np.zeros(5), tau, vx)
     with pytest.raises(FrictionFilterError, match="road_bank"):
         imm.road_bank = 1.0
 

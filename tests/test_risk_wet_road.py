@@ -206,15 +206,15 @@ def test_wet_patch_on_a_straight_is_invisible_until_the_next_corner(pipeline):
     assert lat["information_after_s"] <= lat["caution_after_s"] <= lat["information_after_s"] + LATENCY_S
 
 
-@pytest.mark.parametrize("seed, read", [(2, True), (0, False)])
+@pytest.mark.parametrize("seed, read", [(2, True), (1, False)])
 def test_curve_entered_too_fast_on_a_damp_road_is_cautioned_ahead_when_the_warm_ups_told_the_road(pipeline, seed,
                                                                                                    read):
     """Truth: a damp road (mu 0.55-0.62) throughout; the warm-up curves at 0.3 g tell it to the oracle, which knows
     the side slip, tens of seconds before the critical curve. The friction filter, which must estimate the slip,
     adds up a few seconds of such a corner (switching 0.3 /s). Seed 2: a lower friction is read before the critical
     curve's entry, the estimate there is within two standard deviations of the true road, and the caution (the preview of the curve at that
-    grip) leads the loss by at least 0.5 s, before the entry. Seed 0: the warm-ups did not tell it (no lower reading
-    before the entry, the estimate 0.9 there), the curve looks feasible on 0.9, and the caution comes as the tires load in the
+    grip) leads the loss by at least 0.5 s, before the entry. Seed 1: the warm-ups did not tell it (the lower
+    frictions reached 0.98 of the probability, short of the 0.999 a reading needs; the estimate 0.9 at the entry), the curve looks feasible on 0.9, and the caution comes as the tires load in the
     curve, less than 0.5 s ahead (README: 23 of the 38 evaluation rides that lose their grip are of the first kind)."""
     res = run_case(make_case("too_fast", seed), pipeline)
     ev = res.summary()["events"][0]
@@ -226,7 +226,8 @@ def test_curve_entered_too_fast_on_a_damp_road_is_cautioned_ahead_when_the_warm_
     lead = ev["caution"]["lead_s"]
     assert lead is not None and lead > 0.0
     informed = res.run.series("friction_informed").astype(bool)
-    lower_before = informed[:k] & (res.run.series("mu_hat")[:k] < 0.7 * 0.9)  # the lower side read (FrictionIMM)
+    imm = pipeline.estimator  # the friction filter: its lower side is at or below lower x mu_ref
+    lower_before = informed[:k] & (res.run.series("mu_hat")[:k] <= imm.lower * imm.mu_ref)
     assert lower_before.any() == read
     if read:
         assert abs(mu_hat - res.mu_true[k]) <= 2.0 * mu_std  # the estimate the preview uses at the entry

@@ -30,11 +30,12 @@ distribution of the chain (detailed balance holds, ``pi_i Pi_ij = pi_j Pi_ji``):
 rate ``switch_rate (1 - pi_i)`` (0.03 /s for the reference road, 0.29 /s for the others) and the
 probabilities relax to ``pi`` at the rate ``switch_rate``. ``pi`` gives the reference road ``prior_ref`` (0.9)
 and shares the rest evenly: with nothing to read (a straight) the probabilities return to ``pi`` within about
-``1 / switch_rate`` s (3 s), so what a corner told is still held at the next one, and the switching puts back
-``p (1 - pi_j)`` of the probability per sample (0.03 % on the reference road), so the evidence of a light
-corner on a wet road can add up to a reading. A faster switching forgets a model error sooner, and with it
-the evidence: at 3 /s, 0.999 on the lower side needs a likelihood ratio of about 28 per sample against the
-reference road, which a drop under a loaded tire gives and a steady light corner does not.
+``1 / switch_rate`` s (3 s), so what a corner told is still held at the next one; and the switching moves
+``p pi_ref`` of the lower models' probability back to the reference road per sample (0.27 %), so in the steady
+state 0.999 on the lower side needs a likelihood ratio of about 3.7 per sample against the reference road, which
+a few seconds of a light corner on a wet road can give. A faster switching forgets a model error sooner, and with
+it the evidence: at 3 /s it moves 2.7 % per sample and 0.999 needs a ratio of about 28, which a drop under a
+loaded tire gives and a steady light corner does not.
 
 Friction grid: ``mu_j = mu_ref r^j``, ``j = 0..5``, ``r = 0.8`` (``grid_ratio``; 0.9 down to 0.29 for the
 reference road of :data:`ptw_env.friction.REFERENCE_FRICTION`; no road of the evaluation is on it but the
@@ -43,7 +44,7 @@ reference).
 The reading (:attr:`FrictionIMM.friction_reading`) has two sides, split at ``lower mu_ref`` (``lower`` = 0.7):
 where the models below it hold ``decide`` (0.999) of the probability, the road is *lower*, ``mu = E[mu | mu_j
 <= lower mu_ref]`` with its standard deviation; where the models above it do, the road is the reference one,
-``mu = mu_ref``; otherwise nothing is read (the tires do not tell: a straight, a light corner). The level
+``mu = mu_ref``; otherwise nothing is read (the tires do not tell: a straight, a short light corner). The level
 next to the reference (0.72) is on the reference's side: at the grip a dry urban ride uses (56 %) its
 evidence against the reference is as large as what the sensors' noise and the filter's model error give (on
 the calibration rides below, the lower side of ``lower`` 0.85 held 0.999 at some instant on 5 of 199 rides on
@@ -488,6 +489,8 @@ class FrictionIMM:
         if yv.shape != (len(OUTPUT_NAMES),):
             raise FrictionFilterError(f"y must hold {len(OUTPUT_NAMES)} outputs {OUTPUT_NAMES}, got {yv.shape}")
         try:
+            if isinstance(tau, (bool, str, bytes)) or isinstance(vx, (bool, str, bytes)):
+                raise TypeError
             tau, vx = float(tau), float(vx)
         except (TypeError, ValueError):
             raise FrictionFilterError(f"tau and vx must be numbers (N m, m/s), got {tau!r}, {vx!r}") from None
