@@ -334,7 +334,8 @@ class FrictionIMM:
     speed_jerk : float or None
         The speed given to :meth:`update` is a reading refreshed at a lower rate and held (a GPS): the filter
         predicts with :class:`assist.estimation.speed.SpeedTracker`'s estimate, of this jerk intensity
-        [m^2/s^5] (default :data:`assist.estimation.speed.JERK_INTENSITY`). None: the speed is taken as given
+        [m^2/s^5] (default :data:`assist.estimation.speed.JERK_INTENSITY`), its fix period the sensor model's
+        GPS period (``ptw_env.sensors.SensorConfig.gps_rate_hz``, 10 Hz). None: the speed is taken as given
         (a speed exact at every sample).
 
     Examples
@@ -388,8 +389,10 @@ class FrictionIMM:
         self.cb = np.empty(8)  # its constant part per unit sin(beta)
         fold_vx(self.dW, 1.0, 0.0, 0.0, np.empty((8, 8)), self.cb, np.empty((8, 2)))
         sens = SensorConfig.from_percent(float(noise_pct), vehicle=self.vehicle)
-        self.speed = None if speed_jerk is None else SpeedTracker(self.dt, sens.noise_std.get("vx", 0.0),
-                                                                  float(speed_jerk))
+        gps = float(sens.gps_rate_hz)  # the sensor model's fix rate (ptw_env.sensors); inf: a fix every sample
+        self.speed = None if speed_jerk is None else SpeedTracker(
+            self.dt, sens.noise_std.get("vx", 0.0), float(speed_jerk),
+            fix_period=1.0 / gps if math.isfinite(gps) and gps > 0 else self.dt)
         rvar = np.array([sens.noise_std[c] ** 2 for c in OUTPUT_NAMES])
         rvar[0] += (sens.delta_quantum or ENCODER_QUANTUM) ** 2 / 12.0
         self.rvar = np.maximum(rvar, 1e-10)
