@@ -47,7 +47,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from assist.risk.evaluation import LATENCY_S  # noqa: E402
+from assist.risk.evaluation import LATENCY_S, LEAD_S  # noqa: E402
 from ptw_env.jobs import JobsError, run_jobs  # noqa: E402
 
 from _outputs import add_overwrite, output_dir, write_results  # noqa: E402  (scripts/_outputs.py)
@@ -59,7 +59,6 @@ FILTERS = ((1.0, 3.0), (0.3, 3.0), (0.1, 3.0), (0.1, 1.0), (0.1, 0.3), (0.03, 3.
 JERKS = (1.0, 3.0, 10.0, 30.0, 100.0)
 #: decision rules compared: (lower, decide); the filter's default is (0.7, 0.999)
 RULES = tuple((lo, d) for lo in (0.85, 0.7) for d in (0.95, 0.99, 0.995, 0.999))
-LEAD_S = 0.5
 
 
 def _run(imm, log):
@@ -325,16 +324,21 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     if a.seeds < 1:
         p.error(f"--seeds must be >= 1, got {a.seeds}")
+    if a.workers < 1:
+        p.error(f"--workers must be >= 1, got {a.workers}")
     real = sorted(Path(a.data).glob("rb_*.csv"))
     if not real:
         p.error(f"--data: no rb_*.csv ride in {a.data}")
-    from ptw_env.logs import LogFormatError, read_log
+    from assist.estimation.friction_imm import FrictionIMM
+    from ptw_env.logs import read_log, usable_part
+    from ptw_env.vehicle_files import vehicle_of_log
 
-    for r in real:  # before the rides: a log that cannot be read stops the run here, not after it
+    for r in real:  # before the rides: a log the filter cannot take stops the run here, not after it
         try:
-            read_log(str(r))
-        except (LogFormatError, OSError) as e:
-            p.error(f"--data: {e}")
+            log, _ = usable_part(read_log(str(r)))
+            FrictionIMM(vehicle=vehicle_of_log(log.meta or {}, str(r)), dt=float(log.dt))
+        except (OSError, ValueError) as e:  # LogFormatError, a vehicle file's error, FrictionFilterError
+            p.error(f"--data: {r.name}: {e}")
     out = output_dir(p, a.out, a.overwrite)
     from ptw_env.vehicle_files import vehicle_names
 

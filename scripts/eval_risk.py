@@ -43,8 +43,8 @@ import numpy as np
 from ptw_env.cli import road_bank
 from ptw_env.jobs import JobsError, run_jobs
 
-from assist.risk.evaluation import (EVAL_KINDS, KINDS, LATENCY_LOAD, LATENCY_S, WARNABLE_S, estimator_figures, make_case,
-                                    run_case)
+from assist.risk.evaluation import (EVAL_KINDS, KINDS, LATENCY_LOAD, LATENCY_S, LEAD_S, WARNABLE_S, estimator_figures,
+                                    make_case, run_case)
 from ptw_env.friction import SCALINGS
 from assist.risk.offline import plot_risk, replay
 from _outputs import add_overwrite, output_dir, write_results  # noqa: E402  (scripts/_outputs.py)
@@ -132,7 +132,7 @@ def summarise(rides: list[dict], variant: str = "default") -> dict:
             leads = [e[lev]["lead_s"] for e in ev if e[lev]["lead_s"] is not None]
             d[lev] = {
                 "detected": len(leads),
-                "detected_0p5s": sum(1 for x in leads if x >= 0.5),
+                "detected_0p5s": sum(1 for x in leads if x >= LEAD_S),
                 "missed": len(ev) - len(leads),
                 "lead_s": _stats(leads),
                 "late_s_of_missed": _stats([e[lev]["late_s"] for e in ev if e[lev]["lead_s"] is None
@@ -149,7 +149,7 @@ def summarise(rides: list[dict], variant: str = "default") -> dict:
                     and r["estimator"].get("onset_to_saturation_s") is not None
                     and r["estimator"]["onset_to_saturation_s"] < WARNABLE_S]
             d["warnable"] = {"events": len(ok),
-                             "caution_0p5s": sum(1 for e in ok if (e["caution"]["lead_s"] or 0.0) >= 0.5),
+                             "caution_0p5s": sum(1 for e in ok if (e["caution"]["lead_s"] or 0.0) >= LEAD_S),
                              "lead_s": _stats([e["caution"]["lead_s"] for e in ok if e["caution"]["lead_s"] is not None]),
                              "too_late_onset_to_saturation_s": _stats([o for o, _ in on if o is not None and o < WARNABLE_S]),
                              "too_late": [{"onset_to_saturation_s": round(o, 2),
@@ -282,7 +282,7 @@ def targets(rides: list[dict]) -> dict:
         ev = [e for r in rs for e in r["events"] if e.get("after_reference_s") is not None]
         late = [e for e in ev if e["after_reference_s"] >= WARNABLE_S]
         if ev:
-            miss = [e for e in late if (e["caution"]["lead_s"] or 0.0) < 0.5]
+            miss = [e for e in late if (e["caution"]["lead_s"] or 0.0) < LEAD_S]
             d["lead"] = {"events": len(ev), "events_1s_after": len(late),
                          "warned_0p5s": len(late) - len(miss),
                          "missed": [{"seed": r["seed"], "t": round(e["t"], 2),
@@ -292,10 +292,10 @@ def targets(rides: list[dict]) -> dict:
                                      "information_lead_bound_s": None if e["information_lead_bound_s"] is None
                                      else round(e["information_lead_bound_s"], 2)}
                                     for r in rs for e in r["events"] if e in miss],
-                         "oracle_warnable_0p5s": sum(1 for e in late if (e["information_lead_bound_s"] or 0.0) >= 0.5),
+                         "oracle_warnable_0p5s": sum(1 for e in late if (e["information_lead_bound_s"] or 0.0) >= LEAD_S),
                          # every loss of grip, also those within WARNABLE_S of the drop / curve entry
-                         "all_warned_0p5s": sum(1 for e in ev if (e["caution"]["lead_s"] or 0.0) >= 0.5),
-                         "all_oracle_0p5s": sum(1 for e in ev if (e["information_lead_bound_s"] or 0.0) >= 0.5),
+                         "all_warned_0p5s": sum(1 for e in ev if (e["caution"]["lead_s"] or 0.0) >= LEAD_S),
+                         "all_oracle_0p5s": sum(1 for e in ev if (e["information_lead_bound_s"] or 0.0) >= LEAD_S),
                          "all_caution_lead_s": _stats([e["caution"]["lead_s"] for e in ev
                                                        if e["caution"]["lead_s"] is not None])}
         lat = [r["latency"] for r in rs if r.get("latency") and kind.startswith("wet")
@@ -385,6 +385,8 @@ def main(argv: list[str] | None = None) -> int:
     if a.figure_seed is not None and not a.first_seed <= a.figure_seed < a.first_seed + a.seeds:
         p.error(f"--figure-seed must be one of the seeds run, {a.first_seed}-{a.first_seed + a.seeds - 1}, got "
                 f"{a.figure_seed}")
+    if a.workers < 1:
+        p.error(f"--workers must be >= 1, got {a.workers}")
     out = output_dir(p, a.out, a.overwrite)
     fseed = a.first_seed if a.figure_seed is None else a.figure_seed
     jobs = [(k, s, str(out / f"timeline_{k}.png") if s == fseed else None)
@@ -397,6 +399,8 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(e))
     rides = [r for r in done.values() if "no_ride" not in r]
     no_ride = [r for r in done.values() if "no_ride" in r]
+    if not rides:
+        p.error("no ride left to evaluate: " + "; ".join(f"{r['kind']} seed {r['seed']}: {r['no_ride']}" for r in no_ride))
     # the rides first: a summary that fails must not lose them
     (out / "rides.json").write_text(json.dumps(rides, indent=1, allow_nan=False, default=float) + "\n")
     # on peak-scaling tires the default monitor already acts on the estimate alone (confirm_sigmas 0)

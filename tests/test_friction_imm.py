@@ -92,9 +92,9 @@ def test_wet_patch_in_a_corner_is_read_within_the_latency(seed):
     """Truth: the patch (0.9 -> 0.45) begins under tires carrying at least 0.2 of their load sideways; a
     lower friction is read within LATENCY_S (0.3 s) of the drop, not before it; its first reading is within
     two of its standard deviations of the true friction then (the patch's 2 m ramp takes 0.15 s at 13 m/s: the first
-    reading can come while the road is on its way down) and narrower than the lower side of the grid (its levels'
-    spread, 0.105: a reading, not a shrug; on seed 3 it is 0.510 +- 0.066 as the side takes 0.999), and 0.1 s
-    later it is the grid's level nearest to 0.45, within 0.05."""
+    reading can come while the road is on its way down; its spread is not bounded at that first sample: on seed 3 it is
+    0.510 +- 0.066 as the side takes 0.999), and 0.1 s later it is the grid's level nearest to 0.45 with a standard
+    deviation of at most 0.05 (a reading, not a shrug)."""
     case, r = _ride("wet_corner", seed)
     imm, p_low, readings = _filter(r)
     t = np.asarray(r.log.t)
@@ -105,7 +105,7 @@ def test_wet_patch_in_a_corner_is_read_within_the_latency(seed):
     first = readings[low[0]]
     assert first.informed and "lower friction" in first.status
     mu_true = np.asarray(r.log.columns["mu_true"], dtype=float)
-    assert abs(first.mu - mu_true[low[0]]) <= 2.0 * first.std and first.std < np.std(imm.grid[imm.low])
+    assert abs(first.mu - mu_true[low[0]]) <= 2.0 * first.std
     nearest = imm.grid[np.argmin(np.abs(imm.grid - mu_true[-1]))]  # the patch's friction (0.45)
     later = readings[low[0] + round(0.1 / imm.dt)]
     assert later.mu == pytest.approx(nearest, abs=0.01) and later.std <= 0.05
@@ -116,9 +116,11 @@ def test_wet_road_after_a_straight_is_read_in_a_corner_before_the_grip_goes(seed
     """Truth: the patch (0.9 -> 0.45) begins on a straight and lasts to the end of the ride; the tires carry the
     new friction only in the corners after it. Seed 5: the grip goes 20.3 s after the drop, in a later corner;
     seed 3: it never goes. The lower friction is read after the drop, in a corner (true |F|/Fz of an axle at
-    least 0.2 in the 0.3 s before), at least 0.5 s before any loss of grip (|F_ss| >= 0.95 Fmax), and it is
-    within two of its standard deviations of 0.45."""
-    from assist.risk.evaluation import saturation_events, true_utilisation
+    least LATENCY_LOAD = 0.2 in the LATENCY_S = 0.3 s before), at least LEAD_S = 0.5 s before any loss of grip
+    (|F_ss| >= 0.95 Fmax), and it is within two of its standard deviations of the true friction; 0.1 s later the
+    posterior is too, with a standard deviation of at most 0.05 (in these light corners the lower side's probability
+    then hovers at the 0.999 line, 0.998-0.999: the reading itself can flicker)."""
+    from assist.risk.evaluation import LATENCY_LOAD, LEAD_S, saturation_events, true_utilisation
 
     case, r = _ride("wet_straight", seed)
     imm, p_low, readings = _filter(r)
@@ -131,12 +133,15 @@ def test_wet_road_after_a_straight_is_read_in_a_corner_before_the_grip_goes(seed
     util = true_utilisation(r.states, c["vx_true"], c["mu_true"], case.friction, case.effects)
     loss = saturation_events(t, util)
     assert bool(loss.size) == loses_grip  # the ride the case stands for
-    assert loss.size == 0 or loss[0] - t[k] >= 0.5, (t[k], loss[:1])
+    assert loss.size == 0 or loss[0] - t[k] >= LEAD_S, (t[k], loss[:1])
     tires = imm.vehicle.tires
-    load = np.abs(r.states[k - round(0.3 / imm.dt):k + 1, 6:8]) / np.array([tires.Fzf, tires.Fzr])
-    assert load.max() >= 0.2
+    load = np.abs(r.states[k - round(LATENCY_S / imm.dt):k + 1, 6:8]) / np.array([tires.Fzf, tires.Fzr])
+    assert load.max() >= LATENCY_LOAD
     first = readings[k]
     assert first.informed and abs(first.mu - c["mu_true"][k]) <= 2.0 * first.std
+    j = k + round(0.1 / imm.dt)
+    later = readings[j]
+    assert abs(later.mu - c["mu_true"][j]) <= 2.0 * later.std and later.std <= 0.05
 
 
 def test_road_bank_is_estimated_and_a_known_one_is_held():
@@ -193,7 +198,7 @@ def test_grid_and_bad_options():
                       ({"vehicle": "sharp1971"}, "must be a Vehicle"),
                       ({"noise_pct": math.nan}, "noise_pct"), ({"prior_ref": True}, "prior_ref"),
                       ({"speed_jerk": 0.0}, "speed_jerk"), ({"speed_jerk": True}, "speed_jerk"),
-                      ({"speed_jerk": "10"}, "speed_jerk")):
+                      ({"speed_jerk": "10"}, "speed_jerk"), ({"dt": 10**400}, "dt"), ({"noise_scale": np.True_}, "noise_scale")):
         with pytest.raises(FrictionFilterError, match=match):
             FrictionIMM(**kw)
     for args in ((0.9, 0.8, "x"), (0.9, "a"), (math.nan,), (0.9, 0.8, True)):
@@ -207,8 +212,9 @@ def test_grid_and_bad_options():
         imm.update([0.0, 0.0], 0.0, 15.0)
     with pytest.raises(FrictionFilterError, match="5 numbers"):
         imm.update(["a"] * 5, 0.0, 15.0)
-    for tau, vx in ((None, 15.0), (0.0, "15"), (0.0, True), (b"1", 15.0)):
-        with pytest.raises(FrictionFilterError, match="must be numbers"):
+    for tau, vx, what in ((None, 15.0, "tau"), (0.0, "15", "vx"), (0.0, True, "vx"), (b"1", 15.0, "tau"),
+                          (0.0, np.True_, "vx"), (10**400, 15.0, "tau"), (0.0, 10**400, "vx"), (0.0, math.inf, "vx")):
+        with pytest.raises(FrictionFilterError, match=f"{what} .* must be a finite number"):
             imm.update(np.zeros(5), tau, vx)
     with pytest.raises(FrictionFilterError, match="road_bank"):
         imm.road_bank = 1.0

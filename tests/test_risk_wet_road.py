@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from assist.risk import FrictionConfig, FrictionEstimate, RiskMonitor
-from assist.risk.evaluation import (LATENCY_S, dry_contrast, information_onset, make_case, run_case)
+from assist.risk.evaluation import (LATENCY_S, LEAD_S, dry_contrast, information_onset, make_case, run_case)
 from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0, peak_friction, utilisation_of_secant
 from assist.risk.pipeline import RiskPipeline, default_estimator
 from ptw_env.dynamics import compile_plant
@@ -231,6 +231,6 @@ def test_curve_entered_too_fast_on_a_damp_road_is_cautioned_ahead_when_the_warm_
     assert lower_before.any() == read
     if read:
         assert abs(mu_hat - res.mu_true[k]) <= 2.0 * mu_std  # the estimate the preview uses at the entry
-        assert lead >= 0.5 and ev["t"] - lead < entry
+        assert lead >= LEAD_S and ev["t"] - lead < entry
     else:
-        assert mu_hat == pytest.approx(0.9) and lead < 0.5 and ev["t"] - lead > entry
+        assert mu_hat == pytest.approx(imm.mu_ref) and lead < LEAD_S and ev["t"] - lead > entry

@@ -773,8 +773,6 @@ class AdaptiveObserver:
         return self.run(log.t, Y, c["tau"], c["vx"], interpolate_speed=interpolate_speed)
 
 
-
-
 def effective_noise(design: AdaptiveObserverDesign, vx: float | None = None) -> np.ndarray:
     """``R_eff = R + C Sigma_x C^T`` (5 x 5): covariance of the innovation of the LPV observer.
 

@@ -133,7 +133,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import numbers
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -152,7 +151,7 @@ from ptw_env.vehicle import DELTA, DELTA_DOT, FYF, FYR, PHI_DOT, R, VY, Vehicle
 from assist.estimation.adaptive_design import DEFAULT_PROCESS_STD, default_design
 from assist.estimation.adaptive_observer import DEFAULT_BAND, AdaptiveObserver
 from assist.estimation.lpv_model import (OUTPUT_NAMES, OUTPUT_UNITS, STATE_SCALE, THETA_NAMES, LPVModel, build_lpv_model,
-                                         chi_entry)
+                                         check_bank, chi_entry)
 
 #: Methods of :func:`estimate` (cli.md ``--method``; ``ekf`` is an alias of ``ukf``).
 METHODS = ("adaptive", "direct", "inversion", "ukf")
@@ -658,9 +657,7 @@ class JointEKF:
         self.process_std, self.stiffness_walk, self.stiffness_std0 = q, float(stiffness_walk), float(stiffness_std0)
         self.band = (lo, hi)
         self.offsets = offset_channels(offsets)
-        if isinstance(road_bank, bool) or not (isinstance(road_bank, numbers.Real) and math.isfinite(road_bank)):
-            raise IdentificationError(f"road_bank must be a finite number of rad, got {road_bank!r}")
-        self.road_bank = float(road_bank)
+        self.road_bank = check_bank(road_bank, IdentificationError)  # effects.md's range, as the other designs
         if not isinstance(drift, bool):
             raise IdentificationError(f"drift must be True or False, got {drift!r}")
         if drift and not self.offsets:

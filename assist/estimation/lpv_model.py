@@ -512,16 +512,49 @@ def chi_entry(x, vx, H0, H1, j):
     return acc
 
 
+#: Bank at which :func:`bank_column` samples the plant [rad] (exact at any value: the column is linear in sin(beta)).
+BANK_SAMPLE_RAD = 0.1
+
+
 def bank_column(vehicle) -> tuple[np.ndarray, np.ndarray]:
     """``(W0, dW)``: the plant's flat coefficients on a level road and their change per unit ``sin(beta)`` of the
     road bank (effects.md ``road_bank``: the bank enters the constant column, row 3's ``-M g sin(beta)`` through
-    ``E^-1``, linearly in ``sin(beta)``), so ``W(beta) = W0 + sin(beta) dW``; sampled at 0.1 rad."""
+    ``E^-1``, linearly in ``sin(beta)``), so ``W(beta) = W0 + sin(beta) dW``; sampled at :data:`BANK_SAMPLE_RAD`."""
     from ptw_env.dynamics import compile_plant
+    from ptw_env.vehicle import Vehicle
 
-    ref = 0.1
+    if not isinstance(vehicle, Vehicle):
+        raise LPVModelError(f"bank_column needs a Vehicle (ptw_env.vehicle_files.load_vehicle), got "
+                            f"{type(vehicle).__name__}")
     w0 = compile_plant(vehicle).flat()[0][0]
-    w1 = compile_plant(vehicle, {"road_bank": {"bank_rad": ref}}).flat()[0][0]
-    return w0.copy(), np.ascontiguousarray((w1 - w0) / math.sin(ref))
+    w1 = compile_plant(vehicle, {"road_bank": {"bank_rad": BANK_SAMPLE_RAD}}).flat()[0][0]
+    return w0.copy(), np.ascontiguousarray((w1 - w0) / math.sin(BANK_SAMPLE_RAD))
+
+
+def check_real(value, name: str, error: type[Exception] = ValueError, *, positive: bool = False,
+               missing_ok: bool = False) -> float:
+    """``value`` as a float, or ``error`` naming ``name`` and the value: a real number (not a bool, a numpy bool or
+    a string), finite (``missing_ok``: NaN, a missing reading, passes), and > 0 when ``positive``.
+
+    >>> check_real(2, "dt", positive=True)
+    2.0
+    >>> check_real(True, "dt")
+    Traceback (most recent call last):
+    ...
+    ValueError: dt must be a finite number, got True
+    """
+    kind = "a positive number" if positive else "a finite number"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise error(f"{name} must be {kind}, got {value!r}")
+    try:
+        v = float(value)
+    except (OverflowError, TypeError, ValueError):
+        raise error(f"{name} must be {kind}, got {value!r}") from None
+    if missing_ok and math.isnan(v):
+        return v
+    if not math.isfinite(v) or (positive and v <= 0.0):
+        raise error(f"{name} must be {kind}{' (NaN: missing)' if missing_ok else ''}, got {value!r}")
+    return v
 
 
 def check_bank(value, error: type[Exception] = ValueError) -> float:
@@ -538,15 +571,21 @@ def check_bank(value, error: type[Exception] = ValueError) -> float:
     from ptw_env.effects import VOCABULARY
 
     _, _, lo, hi = VOCABULARY["road_bank"]["bank_rad"]
-    if (isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value)
-            or not lo < value < hi):
-        raise error(f"road_bank must be a bank angle in rad, |road_bank| < {hi:g}, got {value!r}")
-    return float(value)
+    msg = f"road_bank must be a bank angle in rad, |road_bank| < {hi:g}, got {value!r}"
+    try:
+        v = check_real(value, "road_bank", error)
+    except error:
+        raise error(msg) from None
+    if not lo < v < hi:
+        raise error(msg)
+    return v
 
 
 __all__ = [
+    "BANK_SAMPLE_RAD",
     "bank_column",
     "check_bank",
+    "check_real",
     "DELTA_MAX",
     "LPVModel",
     "LPVModelError",

@@ -30,9 +30,12 @@ Units: m/s, m/s^2, s.
 from __future__ import annotations
 
 import math
-import numbers
 
 import numpy as np
+
+from ptw_env.sensors import GPS_RATE_HZ
+
+from assist.estimation.lpv_model import check_real
 
 #: Intensity of the white-noise jerk [m^2/s^5] (module docstring): chosen on the dry calibration rides of the risk
 #: evaluation (seeds 0-39) as the one of 1, 3, 10, 30, 100 with the smallest mean over the rides of the largest speed
@@ -64,8 +67,8 @@ class SpeedTracker:
     jerk : float
         White-noise jerk intensity [m^2/s^5] (default :data:`JERK_INTENSITY`).
     fix_period : float
-        Period of the fixes [s] (default 0.1, a 10 Hz GPS): a sample this long after the last fix is a fix even
-        when its reading repeats.
+        Period of the fixes [s] (default the sensor model's GPS period, ``1 / ptw_env.sensors.GPS_RATE_HZ``,
+        0.1 s): a sample more than this after the last fix is a fix even when its reading repeats.
 
     Examples
     --------
@@ -81,19 +84,25 @@ class SpeedTracker:
     (True, True)
     """
 
-    def __init__(self, dt: float, fix_std: float, jerk: float = JERK_INTENSITY, fix_period: float = 0.1) -> None:
-        for name, val, pos in (("dt", dt, True), ("fix_std", fix_std, False), ("jerk", jerk, True),
-                               ("fix_period", fix_period, True)):
-            if isinstance(val, bool) or not isinstance(val, numbers.Real) or not math.isfinite(val) or val < 0 or (
-                    pos and val == 0):
-                raise SpeedTrackerError(f"SpeedTracker {name} must be a {'positive' if pos else 'non-negative'} "
-                                        f"number, got {val!r}")
-        self.dt = float(dt)
-        self.r = max(float(fix_std), MIN_FIX_STD) ** 2
-        h = self.dt
+    def __init__(self, dt: float, fix_std: float, jerk: float = JERK_INTENSITY,
+                 fix_period: float = 1.0 / GPS_RATE_HZ) -> None:
+        h = check_real(dt, "SpeedTracker dt", SpeedTrackerError, positive=True)
+        std = check_real(fix_std, "SpeedTracker fix_std", SpeedTrackerError)
+        q = check_real(jerk, "SpeedTracker jerk", SpeedTrackerError, positive=True)
+        period = check_real(fix_period, "SpeedTracker fix_period", SpeedTrackerError, positive=True)
+        if std < 0.0:
+            raise SpeedTrackerError(f"SpeedTracker fix_std must be a non-negative number, got {fix_std!r}")
+        self.dt = h
+        try:
+            self.r = max(std, MIN_FIX_STD) ** 2
+            self.Q = q * np.array([[h**3 / 3.0, h**2 / 2.0], [h**2 / 2.0, h]])
+        except OverflowError:
+            self.r = math.inf
         self.F = np.array([[1.0, h], [0.0, 1.0]])
-        self.Q = float(jerk) * np.array([[h**3 / 3.0, h**2 / 2.0], [h**2 / 2.0, h]])
-        self.fix_samples = max(1, int(round(float(fix_period) / self.dt)))
+        if not (math.isfinite(self.r) and np.all(np.isfinite(self.Q)) and period / h < 1e9):
+            raise SpeedTrackerError(f"SpeedTracker options out of range: dt {dt!r} s, fix_std {fix_std!r} m/s, "
+                                    f"jerk {jerk!r}, fix_period {fix_period!r} s")
+        self.fix_samples = max(1, int(round(period / self.dt)))
         self.hold_samples = max(self.fix_samples, int(round(HOLD_AFTER_S / self.dt)))
         self.reset()
 
@@ -107,15 +116,13 @@ class SpeedTracker:
     def peek(self, vx: float) -> tuple:
         """``(estimate, state)`` after taking ``vx`` at this sample, without keeping it (:meth:`commit`
         keeps it)."""
-        if isinstance(vx, bool) or not isinstance(vx, numbers.Real):
-            raise SpeedTrackerError(f"a speed reading must be a number in m/s (NaN: none), got {vx!r}")
+        v = check_real(vx, "a speed reading [m/s]", SpeedTrackerError, missing_ok=True)
         x, P, last, since = (None if self.x is None else self.x.copy()), self.P.copy(), self._last, self._since + 1
         if x is not None:  # predict from the previous sample to this one
             if since > self.hold_samples:  # a long dropout: hold the speed
                 x[1] = 0.0
             x = self.F @ x
             P = self.F @ P @ self.F.T + self.Q
-        v = float(vx)
         if math.isfinite(v) and (v != last or since > self.fix_samples):  # a fix
             if x is None:
                 x = np.array([v, 0.0])
@@ -131,11 +138,13 @@ class SpeedTracker:
 
     def commit(self, peeked: tuple) -> float:
         """Keep a state from :meth:`peek`; returns its estimate [m/s]."""
+        if not (isinstance(peeked, tuple) and len(peeked) == 2 and isinstance(peeked[1], tuple) and len(peeked[1]) == 4):
+            raise SpeedTrackerError(f"commit takes what peek returned, got {peeked!r}")
         est, (self.x, self.P, self._last, self._since) = peeked
         return est
 
     def update(self, vx: float) -> float:
-        """Take this sample's reading ``vx`` [m/s] (NaN: none) and return the speed estimate at this
+        """Take this sample's reading ``vx`` [m/s] (NaN: none; infinite: refused) and return the speed estimate at this
         sample [m/s] (NaN before the first fix)."""
         return self.commit(self.peek(vx))
 

@@ -96,6 +96,8 @@ STRAIGHT_AHEAD_S = 2.0
 LATENCY_LOAD = 0.2
 #: A warning within this time of the drop meets the latency target [s].
 LATENCY_S = 0.3
+#: A warning at least this long before a loss of grip meets the lead target [s] (issue 20).
+LEAD_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -576,6 +578,7 @@ __all__ = [
     "KINDS",
     "LATENCY_LOAD",
     "LATENCY_S",
+    "LEAD_S",
     "OFFSETS",
     "RideCase",
     "SATURATION_FRACTION",
