@@ -69,6 +69,7 @@ def test_dry_rides_are_never_read_as_lower_friction(kind, seed):
     t = np.asarray(r.log.t)
     settled = t >= 1.0
     assert p_low[settled].max() < imm.decide
+    assert not any(x.informed and x.mu < imm.mu_ref for x in readings)  # nor by the evidence
     assert any(x.informed for x, s in zip(readings, settled) if s)  # the reference road is read
 
 
@@ -187,6 +188,44 @@ def test_friction_estimate_takes_a_reading_after_its_start_up():
     assert not st.informed and st.mu_hat == 0.46 and st.mu_std > 0.03  # kept, with its random walk
 
 
+def test_evidence_that_comes_in_small_steps_reads_the_wet_straight_before_the_grip_goes():
+    """Truth: wet straight 1008 of the risk evaluation (0.9 -> 0.45 at 34.0 s on a straight; the grip goes at
+    58.9 s). In the light corners on the wet road the lower side's probability stops short of ``decide`` (0.9965:
+    the switching hands a share back every sample), and the previous version warned 0.1 s ahead. The evidence
+    (Page's CUSUM of the sides' log-likelihood ratio) reads the lower friction at least LEAD_S = 0.5 s before the
+    loss of grip (its margin, EVIDENCE_MARGIN, was set after looking at this ride: the fresh evaluation seeds are
+    its test), the reading within two of its standard deviations of the true friction; with the evidence switched
+    off (a bar no ride reaches) it is read less than LEAD_S ahead. On the ride the evidence is never negative, void
+    wherever the probability reads the reference road, and zero after ``reset``."""
+    from assist.risk.evaluation import LEAD_S, saturation_events, true_utilisation
+
+    case, r = _ride("wet_straight", 1008)
+    t = np.asarray(r.log.t)
+    c = r.log.columns
+    loss = saturation_events(t, true_utilisation(r.states, c["vx_true"], c["mu_true"], case.friction, case.effects))
+    drop = case.notes["patch_start_s"]
+    imm = FrictionIMM()
+    Y, ev, p_low, reads = output_matrix(c), [], [], []
+    for k in range(len(t)):
+        imm.update(Y[k], float(c["tau"][k]), float(c["vx"][k]))
+        ev.append(imm.evidence)
+        p_low.append(float(imm.probabilities[imm.low].sum()))
+        reads.append(imm.friction_reading)
+    ev, p_low = np.array(ev), np.array(p_low)
+    lower = np.array([x.informed and x.mu < imm.mu_ref for x in reads])
+    k = int(np.flatnonzero(lower)[0])
+    assert t[k] >= drop and loss.size and loss[0] - t[k] >= LEAD_S, (t[k], loss[:1])
+    assert p_low[t <= t[k]].max() < imm.decide and ev[k] >= imm.evidence_needed  # read by the evidence
+    assert "evidence" in reads[k].status
+    assert abs(reads[k].mu - c["mu_true"][k]) <= 2.0 * reads[k].std
+    assert ev.min() >= 0.0 and np.all(ev[1.0 - p_low >= imm.decide] == 0.0)
+    imm.reset()
+    assert imm.evidence == 0.0
+    _, _, off = _filter(r, FrictionIMM(evidence=1e9))
+    first = next(j for j, x in enumerate(off) if x.informed and x.mu < imm.mu_ref)
+    assert loss[0] - t[first] < LEAD_S
+
+
 def test_grid_and_bad_options():
     g = friction_grid()
     assert g[0] == 0.9 and np.all(np.diff(g) < 0) and g[-1] >= 0.05
@@ -198,7 +237,9 @@ def test_grid_and_bad_options():
                       ({"vehicle": "sharp1971"}, "must be a Vehicle"),
                       ({"noise_pct": math.nan}, "noise_pct"), ({"prior_ref": True}, "prior_ref"),
                       ({"speed_jerk": 0.0}, "speed_jerk"), ({"speed_jerk": True}, "speed_jerk"),
-                      ({"speed_jerk": "10"}, "speed_jerk"), ({"dt": 10**400}, "dt"), ({"noise_scale": np.True_}, "noise_scale")):
+                      ({"speed_jerk": "10"}, "speed_jerk"), ({"dt": 10**400}, "dt"), ({"noise_scale": np.True_}, "noise_scale"),
+                      ({"evidence": 0.0}, "evidence"), ({"evidence": -1.0}, "evidence"), ({"evidence": math.nan}, "evidence"),
+                      ({"evidence": True}, "evidence"), ({"evidence": "18"}, "evidence")):
         with pytest.raises(FrictionFilterError, match=match):
             FrictionIMM(**kw)
     for args in ((0.9, 0.8, "x"), (0.9, "a"), (math.nan,), (0.9, 0.8, True)):
@@ -279,6 +320,7 @@ def test_missing_speed_is_held_a_bad_torque_refused_and_the_filter_left_as_it_wa
     twin.update(np.zeros(5), 1.0, 15.0)
     np.testing.assert_array_equal(imm.x_hat, twin.x_hat)  # rolled back: the same as never given
     np.testing.assert_array_equal(imm.probabilities, twin.probabilities)
+    assert imm.evidence == twin.evidence
     assert imm.speed.update(math.nan) == twin.speed.update(math.nan) == 15.0  # the trackers too
     imm.update(np.zeros(5), 1.0, 20.0)
     imm.reset()  # forgets the speed as well
