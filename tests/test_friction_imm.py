@@ -219,11 +219,16 @@ def test_evidence_that_comes_in_small_steps_reads_the_wet_straight_before_the_gr
     assert "evidence" in reads[k].status
     assert abs(reads[k].mu - c["mu_true"][k]) <= 2.0 * reads[k].std
     assert ev.min() >= 0.0 and np.all(ev[1.0 - p_low >= imm.decide] == 0.0)
+    e0 = imm.evidence
+    assert e0 > 0.0  # the wet road to the end
+    with pytest.raises(FrictionFilterError, match="likelihood"):  # refused: the evidence is left as it was
+        imm.update(np.array([0.0, 0.0, 0.0, 0.0, 1e300]), 1.0, 16.0)
+    assert imm.evidence == e0
     imm.reset()
     assert imm.evidence == 0.0
     _, _, off = _filter(r, FrictionIMM(evidence=1e9))
-    first = next(j for j, x in enumerate(off) if x.informed and x.mu < imm.mu_ref)
-    assert loss[0] - t[first] < LEAD_S
+    read = [j for j, x in enumerate(off) if x.informed and x.mu < imm.mu_ref]
+    assert read and loss[0] - t[read[0]] < LEAD_S
 
 
 def test_grid_and_bad_options():
@@ -239,7 +244,8 @@ def test_grid_and_bad_options():
                       ({"speed_jerk": 0.0}, "speed_jerk"), ({"speed_jerk": True}, "speed_jerk"),
                       ({"speed_jerk": "10"}, "speed_jerk"), ({"dt": 10**400}, "dt"), ({"noise_scale": np.True_}, "noise_scale"),
                       ({"evidence": 0.0}, "evidence"), ({"evidence": -1.0}, "evidence"), ({"evidence": math.nan}, "evidence"),
-                      ({"evidence": True}, "evidence"), ({"evidence": "18"}, "evidence")):
+                      ({"evidence": True}, "evidence"), ({"evidence": "18"}, "evidence"),
+                      ({"prior_ref": 0.0005, "grid": [0.9, 0.5]}, "not positive"), ({"switch_rate": 1e-323}, "too small")):
         with pytest.raises(FrictionFilterError, match=match):
             FrictionIMM(**kw)
     for args in ((0.9, 0.8, "x"), (0.9, "a"), (math.nan,), (0.9, 0.8, True)):

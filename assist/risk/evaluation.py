@@ -58,6 +58,7 @@ at ``t_event``; an event without an active warning is *missed* (its
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -98,6 +99,12 @@ LATENCY_LOAD = 0.2
 LATENCY_S = 0.3
 #: A warning at least this long before a loss of grip meets the lead target [s] (issue 20).
 LEAD_S = 0.5
+#: Friction of the wet patch of the ``wet*`` ride types (from 0.9), and the alternative of the sequential oracle.
+WET_FRICTION = 0.45
+#: The sequential oracle (:func:`sequential_evidence`) may warn on this share of the dry rides (issue 20: cautions
+#: on at most 2 % of them); it is judged over this many noise draws per ride.
+ORACLE_FALSE_SHARE = 0.02
+ORACLE_DRAWS = 100
 
 
 @dataclass(frozen=True)
@@ -250,7 +257,7 @@ def make_case(kind: str, seed: int, scaling: str = "peak") -> RideCase:
     rng = np.random.default_rng(np.random.SeedSequence([seed, 95]))
     k, more = _patch_start(prof, kind, rng)
     s0 = float(prof.s[k])
-    return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s0, mu_before=0.9, mu_patch=0.45, ramp=2.0,
+    return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s0, mu_before=0.9, mu_patch=WET_FRICTION, ramp=2.0,
                                                            scaling=scaling),
                     effects=effects,
                     notes={**notes, **more, "patch_start_m": s0, "patch_start_s": float(prof.t[k])})
@@ -293,27 +300,85 @@ def saturation_events(t: np.ndarray, util: np.ndarray, fraction: float = SATURAT
     return np.array(out)
 
 
-def dry_contrast(states: np.ndarray, vx: np.ndarray, mu: np.ndarray, friction: FrictionSchedule,
-                 effects=EVAL_EFFECTS, vehicle=None) -> np.ndarray:
-    """What the tires tell about the road, per sample [m/s^2]: ``|sum_k F_ss,k(x; mu_ref) - sum_k
-    F_ss,k(x; mu)| / M``, the lateral acceleration by which the tires on the road ridden (friction
-    ``mu``) differ from the same tires at the same state on the reference road ``mu_ref`` (dry), from
-    the true states. Zero on the reference road; on a wet road of :data:`ptw_env.friction` scaling
-    ``"peak"`` it stays near zero while the tires use a small share of their grip (the curve's slope
-    is the same), on ``"stiffness_and_peak"`` it is ``(1 - mu/mu_ref)`` times the axle forces at any
-    slip. The accelerometer reads the sum of the axle forces over ``M``, so this is the signal
-    any warning that reads the tires has to find the friction in."""
+def friction_contrast(states: np.ndarray, vx: np.ndarray, mu, friction: FrictionSchedule,
+                      effects=EVAL_EFFECTS, vehicle=None) -> np.ndarray:
+    """``(sum_k F_ss,k(x; mu_ref) - sum_k F_ss,k(x; mu)) / M`` per sample [m/s^2], signed: the lateral
+    acceleration by which the tires on a road of friction ``mu`` (one value, or one per sample) differ from the
+    same tires at the same state on the reference road ``mu_ref`` (dry), from the true states (the
+    accelerometer reads ``sum_k F_k / M``, sensors.py row 4)."""
     plants = FrictionPlants(friction, vehicle, effects=as_effects(effects))
     X = np.asarray(states, dtype=float)
     vx = np.asarray(vx, dtype=float)
-    mu = np.asarray(mu, dtype=float)
+    mu = np.broadcast_to(np.asarray(mu, dtype=float), (len(X),))
     ref = plants.plant(friction.mu_ref)
     f_ref = ref.steady_tire_force(X, vx).sum(axis=-1)
     out = np.zeros(len(X))
     for m in np.unique(np.round(mu, 3)):
         idx = np.flatnonzero(np.round(mu, 3) == m)
         out[idx] = f_ref[idx] - plants.plant(float(m)).steady_tire_force(X[idx], vx[idx]).sum(axis=-1)
-    return np.abs(out) / ref.vehicle.mass
+    return out / ref.vehicle.mass
+
+
+def dry_contrast(states: np.ndarray, vx: np.ndarray, mu: np.ndarray, friction: FrictionSchedule,
+                 effects=EVAL_EFFECTS, vehicle=None) -> np.ndarray:
+    """What the tires tell about the road, per sample [m/s^2]: ``|`` :func:`friction_contrast` ``|`` at the
+    friction ridden, ``mu`` per sample. Zero on the reference road; on a wet road of :data:`ptw_env.friction`
+    scaling ``"peak"`` it stays near zero while the tires use a small share of their grip (the curve's slope
+    is the same), on ``"stiffness_and_peak"`` it is ``(1 - mu/mu_ref)`` times the axle forces at any
+    slip. The accelerometer reads the sum of the axle forces over ``M``, so this is the signal
+    any warning that reads the tires has to find the friction in."""
+    return np.abs(friction_contrast(states, vx, mu, friction, effects, vehicle))
+
+
+def sequential_evidence(contrast_alt: np.ndarray, contrast_true: np.ndarray, ay_std: float,
+                        noise: np.ndarray) -> np.ndarray:
+    """The sequential oracle: Page's CUSUM (Page 1954; Basseville and Nikiforov, *Detection of Abrupt
+    Changes*, 1993, sec. 2.2.2) of a reader that knows the true state and the wet road's friction and reads the
+    accelerometer: with ``s_k`` = ``contrast_alt`` (:func:`friction_contrast` to the wet friction: the dry road's
+    force less the wet road's, over ``M``) and ``z_k`` the dry road's force over ``M`` less the reading, ``z_k =
+    c_k + n_k`` (``c_k`` = ``contrast_true``, 0 on a dry road; ``n_k = ay_std noise_k`` white, its sign
+    immaterial), the log-likelihood ratio of the wet road to the dry one per sample is
+    ``(z_k s_k - s_k^2 / 2) / ay_std^2`` and ``g_k = max(0, g_{k-1} + that)``, ``g_{-1} = 0`` [nats]. The CUSUM
+    is optimal for a change to a known alternative in Lorden's sense (the least worst-case delay at a given mean
+    time between false alarms; Lorden, Ann. Math. Stat. 42, 1971; Moustakides, Ann. Stat. 14, 1986). With its
+    threshold set on dry rides to the false-warning share the target allows it is a strong reference for what a
+    warning reading the tires' force through the accelerometer can do (it knows the side slip and the friction),
+    not a proven bound: that optimality is for independent samples of one signal and the worst-case delay, not a
+    deadline met in half the draws at a share of false rides, and it reads no other sensor (the gyros also see
+    the forces, through the yaw and roll moments). ``noise``: standard normal draws ``(K, draws)``; returns the
+    paths ``(K, draws)``.
+
+    >>> s = np.full(4, 0.2)
+    >>> sequential_evidence(s, s, 0.25, np.zeros((4, 1)))[:, 0]  # noise-free: 0.02 / 0.0625 = 0.32 a sample
+    array([0.32, 0.64, 0.96, 1.28])
+    """
+    s = np.asarray(contrast_alt, dtype=float)
+    c = np.asarray(contrast_true, dtype=float)
+    n = np.asarray(noise, dtype=float)
+    if not (s.ndim == c.ndim == 1 and s.shape == c.shape and n.ndim == 2 and n.shape[0] == s.size):
+        raise ValueError(f"contrasts (K,) and noise (K, draws) needed, got {s.shape}, {c.shape}, {n.shape}")
+    if not (isinstance(ay_std, numbers.Real) and not isinstance(ay_std, bool) and math.isfinite(ay_std) and ay_std > 0):
+        raise ValueError(f"ay_std must be a positive finite number [m/s^2], got {ay_std!r}")
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(c)) and np.all(np.isfinite(n))):
+        raise ValueError("contrasts and noise must be finite")
+    var = float(ay_std) ** 2
+    g = np.zeros(n.shape[1])
+    out = np.empty_like(n)
+    for k in range(s.size):
+        g = np.maximum(0.0, g + ((c[k] + ay_std * n[k]) * s[k] - 0.5 * s[k] ** 2) / var)
+        out[k] = g
+    return out
+
+
+def oracle_threshold(dry_maxima) -> float:
+    """The sequential oracle's threshold [nats]: the ``1 - ORACLE_FALSE_SHARE`` quantile of the largest
+    :func:`sequential_evidence` of dry rides (pooled noise draws), so that it warns on that share of them."""
+    m = np.asarray(dry_maxima, dtype=float).ravel()
+    if m.size == 0:
+        raise ValueError("the sequential oracle's threshold needs dry rides")
+    if not np.all(np.isfinite(m)):
+        raise ValueError("the dry rides' largest evidence must be finite")
+    return float(np.quantile(m, 1.0 - ORACLE_FALSE_SHARE))
 
 
 def information_onset(t: np.ndarray, contrast: np.ndarray, t0: float, ay_std: float,
@@ -382,6 +447,11 @@ class CaseResult:
     utilisation: np.ndarray  #: true |F_ss|/Fmax (K, 2)
     events: np.ndarray  #: saturation onsets [s]
     contrast: np.ndarray | None = None  #: :func:`dry_contrast` [m/s^2] (K,)
+    #: :func:`friction_contrast` at the friction ridden and at :data:`WET_FRICTION` (the sequential oracle's
+    #: alternative; None for the too-fast rides, whose road is damp throughout) [m/s^2] (K,)
+    contrast_true: np.ndarray | None = None
+    contrast_alt: np.ndarray | None = None
+    _oracle: Any = field(default=None, init=False, repr=False)
 
     def drop_time(self) -> float | None:
         """First instant the true friction is below the ride's starting friction [s] (None: no drop)."""
@@ -411,6 +481,7 @@ class CaseResult:
         t = run.t
         lv = run.level_code
         t_ref = self.reference_time()
+        seq = self.sequential_oracle()
         t_info = None
         if t_ref is not None and self.contrast is not None:
             ay_std = SensorConfig.from_percent(self.case.noise_pct).noise_std["ay"]
@@ -422,6 +493,9 @@ class CaseResult:
             if t_ref is not None:
                 e["after_reference_s"] = float(te - t_ref)
                 e["information_lead_bound_s"] = None if t_info is None or t_info > te else float(te - t_info)
+            if seq is not None and self.drop_time() is not None:  # the largest evidence LEAD_S or more ahead
+                k = (seq["t"] >= self.drop_time()) & (seq["t"] <= te - LEAD_S)
+                e["sequential_max"] = _rounded(seq["paths"][k].max(axis=0)) if k.any() else None
             ev.append(e)
         latency = None
         if t_ref is not None:
@@ -429,6 +503,9 @@ class CaseResult:
             latency = {"load_at_reference": self.load_at(t_ref),
                        "caution_after_s": float(t[on[0]] - t_ref) if on.size else None,
                        "information_after_s": None if t_info is None else float(max(t_info - t_ref, 0.0))}
+            if seq is not None and self.drop_time() is not None:
+                k = (seq["t"] >= t_ref) & (seq["t"] <= t_ref + LATENCY_S)
+                latency["sequential_max"] = _rounded(seq["paths"][k].max(axis=0))
         return {
             "kind": self.case.kind,
             "seed": self.case.seed,
@@ -443,7 +520,24 @@ class CaseResult:
             "mu_true_final": float(self.mu_true[-1]),
             "reference_s": t_ref,
             "latency": latency,
+            **({"oracle_dry_max": _rounded(seq["paths"].max(axis=0))} if seq is not None and self.drop_time() is None
+               else {}),
         }
+
+    def sequential_oracle(self) -> dict | None:
+        """The sequential oracle's paths (:func:`sequential_evidence`, :data:`ORACLE_DRAWS` noise draws seeded by
+        the ride) from the ride's start (on a wet ride it has run on the dry road before the drop, as a reader
+        riding along would: a sum that started earlier is never lower): ``{"t": (K,), "paths": (K, draws)}``;
+        None without an alternative (too fast)."""
+        if self.contrast_alt is None or self.contrast_true is None:
+            return None
+        if self._oracle is None:
+            t = np.asarray(self.run.t, dtype=float)
+            rng = np.random.default_rng(np.random.SeedSequence([self.case.seed, KINDS.index(self.case.kind), 71]))
+            ay_std = SensorConfig.from_percent(self.case.noise_pct).noise_std["ay"]
+            noise = rng.standard_normal((len(t), ORACLE_DRAWS))
+            self._oracle = {"t": t, "paths": sequential_evidence(self.contrast_alt, self.contrast_true, ay_std, noise)}
+        return self._oracle
 
 
 def truth_from_log(log, vehicle=None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -563,9 +657,16 @@ def run_case(case: RideCase, pipeline=None) -> CaseResult:
     run = assess_log(ride.log, pipeline=pipeline, noise_pct=case.noise_pct)
     mu = np.asarray(c["mu_true"], dtype=float)
     util = true_utilisation(ride.states, c["vx_true"], mu, case.friction, case.effects)
+    signed = friction_contrast(ride.states, c["vx_true"], mu, case.friction, case.effects)
+    alt = None if case.kind == "too_fast" else friction_contrast(ride.states, c["vx_true"], WET_FRICTION,
+                                                                  case.friction, case.effects)
     return CaseResult(case=case, ride=ride, run=run, mu_true=mu, utilisation=util,
-                      events=saturation_events(ride.log.t, util),
-                      contrast=dry_contrast(ride.states, c["vx_true"], mu, case.friction, case.effects))
+                      events=saturation_events(ride.log.t, util), contrast=np.abs(signed), contrast_true=signed,
+                      contrast_alt=alt)
+
+
+def _rounded(x: np.ndarray) -> list[float]:
+    return [round(float(v), 2) for v in x]
 
 
 __all__ = [
@@ -573,6 +674,12 @@ __all__ = [
     "CurveTooFast",
     "EVAL_EFFECTS",
     "dry_contrast",
+    "friction_contrast",
+    "oracle_threshold",
+    "sequential_evidence",
+    "ORACLE_DRAWS",
+    "ORACLE_FALSE_SHARE",
+    "WET_FRICTION",
     "information_onset",
     "EVAL_KINDS",
     "KINDS",
