@@ -351,13 +351,15 @@ def _or_never(v: float | None) -> str:
 
 def targets_markdown(tg: dict, scaling: str) -> str:
     """The table of :func:`targets`."""
+    from assist.risk.evaluation import ORACLE_FALSE_SHARE
+
     so = tg.get("_sequential_oracle") or {}
     h = so.get("threshold_nats")
     lines = [f"Issue 20's targets, tires with friction scaling '{scaling}' (5 % sensor noise). Oracle: a reader of the "
              "tires that knows the true state, sure at 2 standard errors of 0.3 s of accelerometer noise. Sequential "
              "oracle (`assist.risk.evaluation.sequential_evidence`): the CUSUM of a reader that knows the true state "
              "and the wet friction, reading the accelerometer, its threshold set on this run's dry rides to warn on "
-             f"{100 * so.get('false_share', 0.02):g} % of them ("
+             f"{100 * so.get('false_share', ORACLE_FALSE_SHARE):g} % of them ("
              + ("no dry ride in this run: not evaluated" if h is None else
                 f"{h:g} nats over {so['dry_ride_draws']} ride-draws") + "); it could where it does in at least half "
              "of its noise draws.", "",

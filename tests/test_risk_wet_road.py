@@ -226,9 +226,20 @@ def test_the_sequential_oracle_adds_evidence_up_and_is_only_noise_on_a_dry_road(
         oracle_threshold([])
     with pytest.raises(ValueError, match="finite"):
         oracle_threshold([1.0, math.nan])
-    for bad in (0.0, -0.25, math.nan, True):
+    for bad in (0.0, -0.25, math.nan, True, "0.25", 1e200, 1e-200):
         with pytest.raises(ValueError, match="ay_std"):
             sequential_evidence(s, s, bad, np.zeros((300, 1)))
+    for noise in (np.full((300, 1), "a"), np.zeros((300, 1)) + 0j):
+        with pytest.raises(ValueError, match="real numbers"):
+            sequential_evidence(s, s, 0.25, noise)
+    for bad in ({}, ["x"], [True]):
+        with pytest.raises(ValueError, match="must be numbers"):
+            oracle_threshold(bad)
+    from assist.risk.evaluation import friction_contrast
+    X, vx = np.zeros((3, 8)), np.full(3, 15.0)
+    for mu in (math.nan, None, "x", [0.5, 0.5], 3.0):
+        with pytest.raises(ValueError, match="mu must"):
+            friction_contrast(X, vx, mu, FrictionSchedule.constant(0.9), SAT)
 
 
 def test_the_sequential_oracle_sees_the_earlier_corner_and_not_the_last_one(pipeline):
@@ -240,7 +251,6 @@ def test_the_sequential_oracle_sees_the_earlier_corner_and_not_the_last_one(pipe
     dry = run_case(make_case("dry", 2), pipeline).summary()
     assert len(dry["oracle_dry_max"]) == ORACLE_DRAWS
     h = oracle_threshold(dry["oracle_dry_max"])
-    assert h > 0.0
     late = run_case(make_case("wet_straight", 5), pipeline).summary()["events"][0]
     assert late["after_reference_s"] > 20.0 and np.mean(np.asarray(late["sequential_max"]) >= h) > 0.9
     at_once = run_case(make_case("wet_straight", 2), pipeline).summary()["events"][0]

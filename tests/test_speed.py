@@ -93,6 +93,6 @@ def test_bad_options_are_refused():
     for bad in (None, "12", 1j, True, np.True_, math.inf, -math.inf, 10**400):
         with pytest.raises(SpeedTrackerError, match="speed reading"):
             tr.update(bad)
-    for bad in (None, (1.0, 2.0), "x"):
+    for bad in (None, (1.0, 2.0), "x", (1.0, (None, None, None, None)), (1.0, (None, np.eye(2), "0", 0))):
         with pytest.raises(SpeedTrackerError, match="what peek returned"):
             tr.commit(bad)

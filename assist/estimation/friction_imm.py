@@ -128,8 +128,8 @@ beta)``), an offset only the reading, so loaded corners tell them apart. A later
 has no state: on straights and in corners it adds to ``a_y`` as ``g sin(beta)`` does, so it reads as a bank of
 about ``o / g`` (0.1 m/s^2 as 0.010 rad).
 
-Cost: six extended Kalman filters of 10 states per sample and the speed tracker, 118 us per
-:meth:`FrictionIMM.update` against 11.7 us for one environment step in the same run (``scripts/bench_adaptive.py``,
+Cost: six extended Kalman filters of 10 states per sample, the speed tracker and the evidence, 134 us per
+:meth:`FrictionIMM.update` against 11.0 us for one environment step in the same run (12.2x) (``scripts/bench_adaptive.py``,
 README's benchmark table).
 
 Units: states as model.md (rad, rad/s, m/s, N), ``mu`` dimensionless, times in s.
@@ -475,6 +475,9 @@ class FrictionIMM:
         self.lower = float(lower)
         self.low = self.grid <= float(lower) * self.mu_ref  # the lower side of the reading
         #: the evidence [nats] that reads the lower side when its probability does not (module docstring)
+        if not self.low.any():
+            raise FrictionFilterError(f"no friction of the grid {g.tolist()} is at or below lower x mu_ref = "
+                                      f"{lower * self.mu_ref:g}")
         prior_odds = float(self.pi[~self.low].sum() / self.pi[self.low].sum())
         self.evidence_needed = (EVIDENCE_MARGIN * (_logit(self.decide) + math.log(prior_odds)) if evidence is None
                                 else float(evidence))
@@ -482,9 +485,6 @@ class FrictionIMM:
             raise FrictionFilterError(f"the evidence the lower side needs, {EVIDENCE_MARGIN:g} x (ln(decide / (1 - "
                                       f"decide)) + ln({prior_odds:.3g})), is not positive with prior_ref {prior_ref!r} "
                                       f"and decide {decide!r}: a larger prior_ref or decide, or an evidence option")
-        if not self.low.any():
-            raise FrictionFilterError(f"no friction of the grid {g.tolist()} is at or below lower x mu_ref = "
-                                      f"{lower * self.mu_ref:g}")
         self.stiffness = self.model.theta0.copy()
         self.stiffness_std = np.full(4, math.nan)
         self._known_bank: float | None = None

@@ -138,7 +138,13 @@ class SpeedTracker:
 
     def commit(self, peeked: tuple) -> float:
         """Keep a state from :meth:`peek`; returns its estimate [m/s]."""
-        if not (isinstance(peeked, tuple) and len(peeked) == 2 and isinstance(peeked[1], tuple) and len(peeked[1]) == 4):
+        ok = isinstance(peeked, tuple) and len(peeked) == 2 and isinstance(peeked[1], tuple) and len(peeked[1]) == 4
+        if ok:
+            x, P, last, since = peeked[1]
+            ok = ((x is None or (isinstance(x, np.ndarray) and x.shape == (2,)))
+                  and isinstance(P, np.ndarray) and P.shape == (2, 2) and isinstance(last, float)
+                  and isinstance(since, int) and not isinstance(since, bool))
+        if not ok:
             raise SpeedTrackerError(f"commit takes what peek returned, got {peeked!r}")
         est, (self.x, self.P, self._last, self._since) = peeked
         return est

@@ -65,7 +65,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ptw_env.effects import as_effects
-from ptw_env.friction import SCALINGS, FrictionPlants, FrictionSchedule
+from ptw_env.friction import MU_RANGE, REFERENCE_FRICTION, SCALINGS, FrictionPlants, FrictionSchedule
 from ptw_env.sensors import SensorConfig
 from ptw_env.scenarios import (Scenario, ScenarioError, require_positive, Segment, segments_to_grid, space_based,
                                speed_plan, make_scenario)
@@ -251,13 +251,13 @@ def make_case(kind: str, seed: int, scaling: str = "peak") -> RideCase:
         bias = {c: float(rng.choice([-1.0, 1.0]) * v) for c, v in OFFSETS.items()}
         notes = {"bias": bias}
     if kind.startswith("dry"):
-        return RideCase(kind, seed, sc, FrictionSchedule.constant(0.9, scaling=scaling), effects=effects, notes=notes,
+        return RideCase(kind, seed, sc, FrictionSchedule.constant(REFERENCE_FRICTION, scaling=scaling), effects=effects, notes=notes,
                         bias=bias)
     prof = sc.profile(0.01)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 95]))
     k, more = _patch_start(prof, kind, rng)
     s0 = float(prof.s[k])
-    return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s0, mu_before=0.9, mu_patch=WET_FRICTION, ramp=2.0,
+    return RideCase(kind, seed, sc, FrictionSchedule.patch(start=s0, mu_before=REFERENCE_FRICTION, mu_patch=WET_FRICTION, ramp=2.0,
                                                            scaling=scaling),
                     effects=effects,
                     notes={**notes, **more, "patch_start_m": s0, "patch_start_s": float(prof.t[k])})
@@ -309,7 +309,12 @@ def friction_contrast(states: np.ndarray, vx: np.ndarray, mu, friction: Friction
     plants = FrictionPlants(friction, vehicle, effects=as_effects(effects))
     X = np.asarray(states, dtype=float)
     vx = np.asarray(vx, dtype=float)
-    mu = np.broadcast_to(np.asarray(mu, dtype=float), (len(X),))
+    try:
+        mu = np.broadcast_to(np.asarray(mu, dtype=float), (len(X),))
+    except (TypeError, ValueError):
+        raise ValueError(f"mu must be a friction or one per sample ({len(X)}), got {mu!r}") from None
+    if not np.all((mu >= MU_RANGE[0]) & (mu <= MU_RANGE[1])):
+        raise ValueError(f"mu must lie in {MU_RANGE}")
     ref = plants.plant(friction.mu_ref)
     f_ref = ref.steady_tire_force(X, vx).sum(axis=-1)
     out = np.zeros(len(X))
@@ -352,16 +357,18 @@ def sequential_evidence(contrast_alt: np.ndarray, contrast_true: np.ndarray, ay_
     >>> sequential_evidence(s, s, 0.25, np.zeros((4, 1)))[:, 0]  # noise-free: 0.02 / 0.0625 = 0.32 a sample
     array([0.32, 0.64, 0.96, 1.28])
     """
-    s = np.asarray(contrast_alt, dtype=float)
-    c = np.asarray(contrast_true, dtype=float)
-    n = np.asarray(noise, dtype=float)
+    try:
+        s, c, n = (_real_array(v) for v in (contrast_alt, contrast_true, noise))
+    except (TypeError, ValueError):
+        raise ValueError("contrasts and noise must be arrays of real numbers") from None
     if not (s.ndim == c.ndim == 1 and s.shape == c.shape and n.ndim == 2 and n.shape[0] == s.size):
         raise ValueError(f"contrasts (K,) and noise (K, draws) needed, got {s.shape}, {c.shape}, {n.shape}")
-    if not (isinstance(ay_std, numbers.Real) and not isinstance(ay_std, bool) and math.isfinite(ay_std) and ay_std > 0):
-        raise ValueError(f"ay_std must be a positive finite number [m/s^2], got {ay_std!r}")
+    var = float(ay_std) ** 2 if (isinstance(ay_std, numbers.Real) and not isinstance(ay_std, bool)
+                                 and 1e-100 < ay_std < 1e100) else math.nan
+    if not math.isfinite(var):
+        raise ValueError(f"ay_std must be a positive number [m/s^2] (1e-100 to 1e100), got {ay_std!r}")
     if not (np.all(np.isfinite(s)) and np.all(np.isfinite(c)) and np.all(np.isfinite(n))):
         raise ValueError("contrasts and noise must be finite")
-    var = float(ay_std) ** 2
     g = np.zeros(n.shape[1])
     out = np.empty_like(n)
     for k in range(s.size):
@@ -370,10 +377,21 @@ def sequential_evidence(contrast_alt: np.ndarray, contrast_true: np.ndarray, ay_
     return out
 
 
+def _real_array(v) -> np.ndarray:
+    """``v`` as a float array; strings, booleans and complex numbers refused (TypeError)."""
+    a = np.asarray(v)
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"real numbers needed, got dtype {a.dtype}")
+    return a.astype(float)
+
+
 def oracle_threshold(dry_maxima) -> float:
     """The sequential oracle's threshold [nats]: the ``1 - ORACLE_FALSE_SHARE`` quantile of the largest
     :func:`sequential_evidence` of dry rides (pooled noise draws), so that it warns on that share of them."""
-    m = np.asarray(dry_maxima, dtype=float).ravel()
+    try:
+        m = _real_array(dry_maxima).ravel()
+    except (TypeError, ValueError):
+        raise ValueError(f"the dry rides' largest evidence must be numbers, got {dry_maxima!r}") from None
     if m.size == 0:
         raise ValueError("the sequential oracle's threshold needs dry rides")
     if not np.all(np.isfinite(m)):
