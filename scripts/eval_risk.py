@@ -18,7 +18,7 @@ Targets (issue 20), each summarised in ``results.md``:
   95th percentile);
 * false warnings: no danger, and a caution on at most 2 % of the dry rides.
 
-Beside each, what two oracles that read the tires with the true state could do: the window oracle
+Beside each, what oracles could do: two that read the tires with the true state, the window oracle
 (:func:`assist.risk.evaluation.information_onset`), the earliest instant the tires have told the
 wet road from the dry one, at 2 standard errors of 0.3 s of accelerometer noise (a bar no warning
 with few false alarms could use: it is crossed by noise in 2.3 % of windows); and the sequential
@@ -29,7 +29,13 @@ false-warning share the target allows. The CUSUM is optimal in Lorden's sense (t
 delay at a given mean time between false alarms; Lorden 1971, Moustakides 1986), so where it
 cannot warn 0.5 s ahead in half of its draws, a warning reading the tires' force through the
 accelerometer at that false-warning share cannot either (the gyros also see the forces, through
-the yaw and roll moments: an oracle of all channels is not built).
+the yaw and roll moments). And the observation oracle
+(:func:`assist.risk.evaluation.observation_evidence`), a reader of all the warning's sensors that
+does not know the state: the friction filter with two models only, the dry and the wet friction,
+and the CUSUM of their likelihood ratio, its threshold set the same way on the dry rides (its own
+noise and 4 other draws each, each a ride again: this oracle costs most of the run's time). It
+knows the wet road's friction, which the warning does not; where it cannot warn, a warning that
+must also find the friction cannot be expected to.
 
 Writes ``results.json``, ``rides.json``, ``results.md`` and ``timeline_<type>.png`` (one seed
 per type) into ``--out``.
@@ -97,7 +103,7 @@ def _one(args: tuple) -> dict:
     for name, over in VARIANTS.items():
         run = res.run if not over else replay(res.run, RiskMonitor(RiskConfig(**over), friction=FrictionEstimate(
             pipe.monitor.friction.config)))
-        s = res.summary(run)
+        s = res.summary(run, observation=True)
         w = run.warnings()
         s["warning_reasons"] = [e["reason"] for e in w][:6]
         s["unconfirmed_cautions"] = sum(1 for e in w if "not confirmed" in e["reason"])
@@ -282,7 +288,7 @@ def _pct(x: list[float], q: float) -> float | None:
 
 
 def _could(maxima: list[float] | None, h: float | None) -> bool:
-    """The sequential oracle could (at threshold ``h``): in at least half of its noise draws."""
+    """An oracle could (at threshold ``h``): in at least half of its noise draws."""
     return bool(maxima) and h is not None and float(np.mean(np.asarray(maxima) >= h)) >= 0.5
 
 
@@ -295,8 +301,13 @@ def targets(rides: list[dict]) -> dict:
 
     dry_max = [m for r in rides if r["kind"].startswith("dry") for m in r.get("oracle_dry_max", [])]
     h = oracle_threshold(dry_max) if dry_max else None
+    dry_obs = [m for r in rides if r["kind"].startswith("dry") for m in r.get("observation_dry_max") or []]
+    ho = oracle_threshold(dry_obs) if dry_obs else None
     out: dict = {"_sequential_oracle": {"threshold_nats": None if h is None else round(h, 3),
-                                        "false_share": ORACLE_FALSE_SHARE, "dry_ride_draws": len(dry_max)}}
+                                        "false_share": ORACLE_FALSE_SHARE, "dry_ride_draws": len(dry_max)},
+                 "_observation_oracle": {"threshold_nats": None if ho is None else round(ho, 3),
+                                         "false_share": ORACLE_FALSE_SHARE, "dry_ride_draws": len(dry_obs),
+                                         "largest_dry_nats": max(dry_obs) if dry_obs else None}}
     for kind in KINDS:
         rs = [r for r in rides if r["kind"] == kind]
         if not rs:
@@ -315,11 +326,16 @@ def targets(rides: list[dict]) -> dict:
                                      "information_lead_bound_s": None if e["information_lead_bound_s"] is None
                                      else round(e["information_lead_bound_s"], 2),
                                      "sequential_could": None if h is None or "sequential_max" not in e
-                                     else _could(e["sequential_max"], h)}
+                                     else _could(e["sequential_max"], h),
+                                     "observation_could": None if ho is None or "observation_max" not in e
+                                     else _could(e["observation_max"], ho)}
                                     for r in rs for e in r["events"] if e in miss],
                          "oracle_warnable_0p5s": sum(1 for e in late if (e["information_lead_bound_s"] or 0.0) >= LEAD_S),
                          "sequential_warnable_0p5s": (sum(1 for e in late if _could(e.get("sequential_max"), h))
                                                       if any("sequential_max" in e for e in late) else None),
+                         "observation_warnable_0p5s": (sum(1 for e in late if _could(e.get("observation_max"), ho))
+                                                       if ho is not None and any("observation_max" in e for e in late)
+                                                       else None),
                          # every loss of grip, also those within WARNABLE_S of the drop / curve entry
                          "all_warned_0p5s": sum(1 for e in ev if (e["caution"]["lead_s"] or 0.0) >= LEAD_S),
                          "all_oracle_0p5s": sum(1 for e in ev if (e["information_lead_bound_s"] or 0.0) >= LEAD_S),
@@ -336,7 +352,8 @@ def targets(rides: list[dict]) -> dict:
                             "caution_median_s": _pct(c + [math.inf] * (len(lat) - len(c)), 50),
                             "caution_p95_s": _pct(c + [math.inf] * (len(lat) - len(c)), 95), "oracle_within": sum(1 for x in o if x <= LATENCY_S),
                             "oracle_median_s": _pct(o, 50), "oracle_p95_s": _pct(o, 95),
-                            "sequential_within": sum(1 for x in lat if _could(x.get("sequential_max"), h))}
+                            "sequential_within": sum(1 for x in lat if _could(x.get("sequential_max"), h)),
+                            "observation_within": sum(1 for x in lat if _could(x.get("observation_max"), ho))}
         if kind.startswith("dry"):
             d["false"] = {"rides_with_danger": sum(1 for r in rs if r["danger_episodes"] > 0),
                           "rides_with_caution": sum(1 for r in rs if r["caution_episodes"] > 0),
@@ -355,6 +372,8 @@ def targets_markdown(tg: dict, scaling: str) -> str:
 
     so = tg.get("_sequential_oracle") or {}
     h = so.get("threshold_nats")
+    oo = tg.get("_observation_oracle") or {}
+    ho = oo.get("threshold_nats")
     lines = [f"Issue 20's targets, tires with friction scaling '{scaling}' (5 % sensor noise). Oracle: a reader of the "
              "tires that knows the true state, sure at 2 standard errors of 0.3 s of accelerometer noise. Sequential "
              "oracle (`assist.risk.evaluation.sequential_evidence`): the CUSUM of a reader that knows the true state "
@@ -362,12 +381,17 @@ def targets_markdown(tg: dict, scaling: str) -> str:
              f"{100 * so.get('false_share', ORACLE_FALSE_SHARE):g} % of them ("
              + ("no dry ride in this run: not evaluated" if h is None else
                 f"{h:g} nats over {so['dry_ride_draws']} ride-draws") + "); it could where it does in at least half "
-             "of its noise draws.", "",
+             "of its noise draws. Observation oracle (`assist.risk.evaluation.observation_evidence`): the CUSUM of "
+             "a reader of the warning's own sensors that knows the dry and the wet friction but not the state (the "
+             "friction filter with those two models only), its threshold set the same way ("
+             + ("not evaluated" if ho is None else
+                f"{ho:g} nats over {oo['dry_ride_draws']} ride-draws, largest {oo['largest_dry_nats']:g}")
+             + "), the same rule over its draws (the ride's own sensors and other noise).", "",
              "| ride | rides | lead: losses of grip >= 1 s after drop/entry, caution >= 0.5 s ahead (oracle could; "
-             "sequential oracle could) "
+             "sequential oracle could; observation oracle could) "
              "| every loss of grip: caution >= 0.5 s ahead (oracle could); median lead [s] "
              "| latency: loaded drops (|F|/Fz >= 0.2), caution <= 0.3 s; median / p95 [s] (oracle; sequential "
-             "oracle within 0.3 s) "
+             "oracle within 0.3 s; observation oracle within 0.3 s) "
              "| false: rides with danger / caution (share) |", "|---|---|---|---|---|---|"]
     for kind, d in tg.items():
         if kind.startswith("_"):
@@ -376,15 +400,17 @@ def targets_markdown(tg: dict, scaling: str) -> str:
         la = d.get("latency")
         fa = d.get("false")
         sq = None if not le or le.get("sequential_warnable_0p5s") is None or h is None else le["sequential_warnable_0p5s"]
+        ob = None if not le or ho is None else le.get("observation_warnable_0p5s")
         lead = "-" if not le else (f"{le['warned_0p5s']} of {le['events_1s_after']} ({le['oracle_warnable_0p5s']}; "
-                                   f"{'-' if sq is None else sq})")
+                                   f"{'-' if sq is None else sq}; {'-' if ob is None else ob})")
         alle = "-" if not le else (f"{le['all_warned_0p5s']} of {le['events']} ({le['all_oracle_0p5s']}); "
                                    f"{le['all_caution_lead_s']['median']}")
         lat = "-" if not la else (f"{la['caution_within']} of {la['rides_loaded']} ({la['caution_never']} never); "
                                   f"{_or_never(la['caution_median_s'])} / {_or_never(la['caution_p95_s'])} "
                                   f"(oracle {la['oracle_within']} of "
                                   f"{la['rides_loaded']}; {la['oracle_median_s']} / {la['oracle_p95_s']}; "
-                                  f"{'-' if h is None else la.get('sequential_within', '-')})")
+                                  f"{'-' if h is None else la.get('sequential_within', '-')}; "
+                                  f"{'-' if ho is None else la.get('observation_within', '-')})")
         fal = "-" if not fa else f"{fa['rides_with_danger']} / {fa['rides_with_caution']} ({100 * fa['caution_share']:.1f} %)"
         lines.append(f"| {kind} | {d['rides']} | {lead} | {alle} | {lat} | {fal} |")
     return "\n".join(lines) + "\n"

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from assist.risk import FrictionConfig, FrictionEstimate, RiskMonitor
-from assist.risk.evaluation import (LATENCY_S, LEAD_S, ORACLE_DRAWS, dry_contrast, information_onset, make_case,
-                                    oracle_threshold, run_case, sequential_evidence)
+from assist.risk.evaluation import (LATENCY_S, LEAD_S, OBSERVATION_DRAWS, ORACLE_DRAWS, dry_contrast,
+                                    information_onset, make_case, observation_evidence, oracle_threshold, page_cusum,
+                                    ride_case, run_case, sequential_evidence)
 from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0, peak_friction, utilisation_of_secant
 from assist.risk.pipeline import RiskPipeline, default_estimator
 from ptw_env.dynamics import compile_plant
@@ -247,14 +248,60 @@ def test_the_sequential_oracle_sees_the_earlier_corner_and_not_the_last_one(pipe
     before) and seed 2 (the grip goes less than 0.5 s after the first corner on the wet road loads the tires),
     the sequential oracle's threshold set on the dry ride of seed 2 (98th percentile of its noise draws' largest
     values). It could warn 0.5 s ahead on seed 5 in most draws and on seed 2 in none: what the window oracle
-    says, from a reader that adds its evidence up."""
-    dry = run_case(make_case("dry", 2), pipeline).summary()
-    assert len(dry["oracle_dry_max"]) == ORACLE_DRAWS
+    says, from a reader that adds its evidence up. The observation oracle (the sensors, not the state) says the
+    same, each of its draws: on seed 5 it is hundreds of nats 0.5 s before the loss (the tires on the wet road were
+    loaded near their new peak for seconds), on seed 2 below what the dry ride's draws reached."""
+    dry_ride = run_case(make_case("dry", 2), pipeline)
+    assert "observation_dry_max" not in dry_ride.summary()  # asked for only: it rides the case again
+    dry = dry_ride.summary(observation=True)
+    assert len(dry["oracle_dry_max"]) == ORACLE_DRAWS and len(dry["observation_dry_max"]) == OBSERVATION_DRAWS
     h = oracle_threshold(dry["oracle_dry_max"])
-    late = run_case(make_case("wet_straight", 5), pipeline).summary()["events"][0]
+    ho = oracle_threshold(dry["observation_dry_max"])
+    late = run_case(make_case("wet_straight", 5), pipeline).summary(observation=True)["events"][0]
     assert late["after_reference_s"] > 20.0 and np.mean(np.asarray(late["sequential_max"]) >= h) > 0.9
-    at_once = run_case(make_case("wet_straight", 2), pipeline).summary()["events"][0]
+    assert min(late["observation_max"]) > 10.0 * ho
+    at_once = run_case(make_case("wet_straight", 2), pipeline).summary(observation=True)["events"][0]
     assert at_once["sequential_max"] is not None and max(at_once["sequential_max"]) < h
+    assert max(at_once["observation_max"]) < ho
+
+
+def test_page_cusum_is_pages_recursion_and_refuses_what_is_not_a_number():
+    """The unrolled form ``S_k - min(0, min S_j)`` against the recursion ``g_k = max(0, g_{k-1} + l_k)`` written out,
+    per column."""
+    x = np.random.default_rng(3).normal(-0.1, 1.0, (500, 3))
+    g, want = np.zeros(3), np.empty_like(x)
+    for k in range(len(x)):
+        g = np.maximum(0.0, g + x[k])
+        want[k] = g
+    np.testing.assert_allclose(page_cusum(x), want, atol=1e-12)
+    for bad in ([], 1.0, [1.0, math.nan], ["a"], [1j], [True]):
+        with pytest.raises(ValueError, match="CUSUM"):
+            page_cusum(bad)
+
+
+def test_the_observation_oracle_is_the_two_model_filters_likelihood_ratio_and_refuses_bad_input():
+    """On the wet-straight ride of seed 5 (as above): the evidence is flat (within noise) on the dry road before the
+    patch and grows by hundreds of nats on it before the loss; the likelihood it sums is the filter's (Bayes:
+    the first update's probabilities are the prior times ``exp(log_likelihoods)``, normalised)."""
+    from assist.estimation.friction_imm import FrictionIMM
+
+    case = make_case("wet_straight", 5)
+    log = ride_case(case).log
+    g = observation_evidence(log)
+    t = np.asarray(log.t)
+    drop = case.notes["patch_start_s"]
+    assert g.shape == t.shape and np.all(g >= 0.0)
+    assert g[t < drop].max() < 10.0 and g[t < drop + 20.0].max() > 100.0
+    imm = FrictionIMM(grid=[0.9, 0.45], lower=0.75)
+    y = np.array([0.01, 0.1, 0.02, 0.0, 1.5])
+    imm.update(y, 1.0, 15.0)
+    w = imm.pi * np.exp(imm.log_likelihoods - imm.log_likelihoods.max())
+    np.testing.assert_allclose(imm.probabilities, w / w.sum(), rtol=1e-9)
+    for mu_alt in (0.95, 0.9, "x", None, 0.0):
+        with pytest.raises(ValueError, match="mu_alt"):
+            observation_evidence(log, mu_alt=mu_alt)
+    with pytest.raises(ValueError, match="ride log"):
+        observation_evidence(None)
 
 
 @pytest.mark.parametrize("seed, read", [(2, True), (1, True), (8, False)])

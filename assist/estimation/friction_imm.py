@@ -540,6 +540,9 @@ class FrictionIMM:
         self.probabilities = self.pi.copy()
         self._ll = np.zeros(J)
         self._nis = np.zeros(J)
+        #: each model's log-likelihood ``ln Lambda_j`` of the last sample's outputs (order of :attr:`grid`; zeros
+        #: before the first update) [nats]
+        self.log_likelihoods = np.zeros(J)
         #: the lower side's evidence against the reference road since it was last void, in nats (the CUSUM of
         #: the module docstring): read as lower at :attr:`evidence_needed`
         self.evidence = 0.0
@@ -588,6 +591,7 @@ class FrictionIMM:
         if tracked is not None:
             self.speed.commit(tracked)
         self.probabilities = post
+        self.log_likelihoods = self._ll.copy()
         self.x_hat = post @ post_X[:, :8]
         self._bank_hat = float(post @ post_X[:, 8]) if self._known_bank is None else self._known_bank
         self._offset_hat = float(post @ post_X[:, 9])

@@ -105,6 +105,12 @@ WET_FRICTION = 0.45
 #: on at most 2 % of them); it is judged over this many noise draws per ride.
 ORACLE_FALSE_SHARE = 0.02
 ORACLE_DRAWS = 100
+#: Noise draws of the observation oracle (:meth:`CaseResult.observation_oracle`): the ride's own, then rides of the
+#: same case with other sensor and rider noise (each a ride and a two-model filter pass, about 0.5 s).
+OBSERVATION_DRAWS = 5
+#: Rate of switching between the observation oracle's two models [1/s] (:func:`observation_evidence`): as good as
+#: none (1e-8 of a model's probability a sample at 0.01 s), which the filter needs to be positive.
+OBSERVATION_SWITCH_RATE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -369,12 +375,78 @@ def sequential_evidence(contrast_alt: np.ndarray, contrast_true: np.ndarray, ay_
         raise ValueError(f"ay_std must be a positive number [m/s^2] (1e-100 to 1e100), got {ay_std!r}")
     if not (np.all(np.isfinite(s)) and np.all(np.isfinite(c)) and np.all(np.isfinite(n))):
         raise ValueError("contrasts and noise must be finite")
-    g = np.zeros(n.shape[1])
-    out = np.empty_like(n)
-    for k in range(s.size):
-        g = np.maximum(0.0, g + ((c[k] + ay_std * n[k]) * s[k] - 0.5 * s[k] ** 2) / var)
-        out[k] = g
-    return out
+    return page_cusum(((c[:, None] + ay_std * n) * s[:, None] - 0.5 * s[:, None] ** 2) / var)
+
+
+def page_cusum(increments) -> np.ndarray:
+    """Page's CUSUM ``g_k = max(0, g_{k-1} + l_k)``, ``g_{-1} = 0``, of log-likelihood-ratio increments ``l_k``
+    along the first axis (one path per column) [nats] (E. S. Page, Biometrika 41, 1954; Basseville and Nikiforov,
+    *Detection of Abrupt Changes*, 1993, eq. 2.2.10), as ``S_k - min(0, min_{j <= k} S_j)`` with ``S`` the
+    cumulative sum (the same recursion, unrolled).
+
+    >>> page_cusum([1.0, -3.0, 2.0, 0.5]).tolist()
+    [1.0, 0.0, 2.0, 2.5]
+    """
+    try:
+        x = _real_array(increments)
+    except (TypeError, ValueError):
+        raise ValueError(f"the CUSUM's increments must be real numbers, got {increments!r}"[:200]) from None
+    if x.ndim == 0 or x.shape[0] == 0 or not np.all(np.isfinite(x)):
+        raise ValueError("the CUSUM's increments must be a finite, non-empty array")
+    S = np.cumsum(x, axis=0)
+    return S - np.minimum(0.0, np.minimum.accumulate(S, axis=0))
+
+
+def observation_evidence(log, mu_alt: float = WET_FRICTION, noise_pct: float = 5.0,
+                         mu_ref: float = REFERENCE_FRICTION, vehicle=None) -> np.ndarray:
+    """The observation oracle's evidence over a ride ``log`` [nats] (K,): a reader of the warning's own sensors that
+    knows the two roads to tell apart, the reference road ``mu_ref`` and the wet road ``mu_alt``, but not the
+    state. It is the friction filter (:class:`assist.estimation.friction_imm.FrictionIMM`: the saturating plant,
+    its noise model for ``noise_pct`` % sensors, the speed tracker, the bank and yaw-gyro offset states) with those
+    two models only, switching at :data:`OBSERVATION_SWITCH_RATE` (as good as none), and Page's CUSUM
+    (:func:`page_cusum`) of its models' log-likelihood ratio ``ln Lambda_alt - ln Lambda_ref`` per sample (the
+    likelihood of the sample's outputs given the past ones, from each model's extended Kalman filter; Blom and
+    Bar-Shalom 1988, eq. 11). For two known hypotheses that is the CUSUM of :func:`sequential_evidence` on all
+    channels, with the state estimated instead of known, up to the filter's linearisation: what a warning reading
+    these sensors could do if it knew what the wet road is. ``log``: a ride log (logs.md) with its ``tau`` and
+    ``vx`` columns; ``vehicle``: the filter's vehicle (default the reference scooter)."""
+    from assist.estimation.friction_imm import FrictionIMM
+
+    from .pipeline import output_matrix
+
+    try:
+        mu = [float(mu_ref), float(mu_alt)]
+    except (TypeError, ValueError):
+        raise ValueError(f"mu_ref and mu_alt must be frictions, got {mu_ref!r}, {mu_alt!r}") from None
+    if not (MU_RANGE[0] <= mu[1] < mu[0] <= MU_RANGE[1]):
+        raise ValueError(f"mu_alt must be below mu_ref, both in {MU_RANGE}, got {mu_alt!r}, {mu_ref!r}")
+    try:
+        Y = output_matrix(log.columns)
+        tau, vx = (np.asarray(log.columns[n], dtype=float) for n in ("tau", "vx"))
+    except (AttributeError, KeyError, TypeError, ValueError) as e:
+        raise ValueError(f"a ride log with the outputs, tau and vx is needed ({e})") from None
+    imm = FrictionIMM(noise_pct=noise_pct, vehicle=vehicle, mu_ref=mu[0], grid=mu, lower=0.5 * (1.0 + mu[1] / mu[0]),
+                      switch_rate=OBSERVATION_SWITCH_RATE)
+    inc = np.empty(len(Y))
+    for k in range(len(Y)):
+        imm.update(Y[k], tau[k], vx[k])
+        inc[k] = imm.log_likelihoods[1] - imm.log_likelihoods[0]
+    return page_cusum(inc)
+
+
+def window_max(paths: list[dict], t0: float, t1: float) -> list[float] | None:
+    """The largest value of each draw's path (``{"t", "g"}``) over ``t0 <= t <= t1`` [s], rounded to 0.01 (the
+    draws with no sample there left out); None where no draw has one.
+
+    >>> window_max([{"t": np.arange(5.0), "g": np.array([0.0, 1.0, 3.0, 2.0, 9.0])}], 1.0, 3.0)
+    [3.0]
+    """
+    out = []
+    for p in paths:
+        k = (p["t"] >= t0) & (p["t"] <= t1)
+        if k.any():
+            out.append(round(float(np.max(p["g"][k])), 2))
+    return out or None
 
 
 def _real_array(v) -> np.ndarray:
@@ -470,6 +542,7 @@ class CaseResult:
     contrast_true: np.ndarray | None = None
     contrast_alt: np.ndarray | None = None
     _oracle: Any = field(default=None, init=False, repr=False)
+    _observation: Any = field(default=None, init=False, repr=False)
 
     def drop_time(self) -> float | None:
         """First instant the true friction is below the ride's starting friction [s] (None: no drop)."""
@@ -489,17 +562,20 @@ class CaseResult:
         k = min(int(np.searchsorted(self.run.t, t0)), len(self.ride.states) - 1)
         return float(np.max(np.abs(self.ride.states[k, 6:8]) / np.array([tires.Fzf, tires.Fzr])))
 
-    def summary(self, run=None) -> dict[str, Any]:
+    def summary(self, run=None, observation: bool = False) -> dict[str, Any]:
         """Figures of the ride: events with lead times (caution, danger) and the time from the drop
         (or curve entry) to them, the tires' information onset (:func:`information_onset`) and the lead it
         leaves, the latency of the first caution after a drop and the load then, false-alarm
         episodes, peak true utilisation, friction estimate at the end and its truth (``run``: another
-        assessment of the same ride, e.g. :func:`assist.risk.offline.replay`)."""
+        assessment of the same ride, e.g. :func:`assist.risk.offline.replay`); with ``observation`` also the
+        observation oracle's largest values (:meth:`observation_oracle`, which rides the case again: about 2 s
+        a ride)."""
         run = self.run if run is None else run
         t = run.t
         lv = run.level_code
         t_ref = self.reference_time()
         seq = self.sequential_oracle()
+        obs = self.observation_oracle() if observation else None
         t_info = None
         if t_ref is not None and self.contrast is not None:
             ay_std = SensorConfig.from_percent(self.case.noise_pct).noise_std["ay"]
@@ -514,6 +590,8 @@ class CaseResult:
             if seq is not None and self.drop_time() is not None:  # the largest evidence LEAD_S or more ahead
                 k = (seq["t"] >= self.drop_time()) & (seq["t"] <= te - LEAD_S)
                 e["sequential_max"] = _rounded(seq["paths"][k].max(axis=0)) if k.any() else None
+                if obs is not None:
+                    e["observation_max"] = window_max(obs, self.drop_time(), te - LEAD_S)
             ev.append(e)
         latency = None
         if t_ref is not None:
@@ -524,6 +602,8 @@ class CaseResult:
             if seq is not None and self.drop_time() is not None:
                 k = (seq["t"] >= t_ref) & (seq["t"] <= t_ref + LATENCY_S)
                 latency["sequential_max"] = _rounded(seq["paths"][k].max(axis=0))
+                if obs is not None:
+                    latency["observation_max"] = window_max(obs, t_ref, t_ref + LATENCY_S)
         return {
             "kind": self.case.kind,
             "seed": self.case.seed,
@@ -540,6 +620,8 @@ class CaseResult:
             "latency": latency,
             **({"oracle_dry_max": _rounded(seq["paths"].max(axis=0))} if seq is not None and self.drop_time() is None
                else {}),
+            **({"observation_dry_max": window_max(obs, -math.inf, math.inf)}
+               if obs is not None and self.drop_time() is None else {}),
         }
 
     def sequential_oracle(self) -> dict | None:
@@ -556,6 +638,21 @@ class CaseResult:
             noise = rng.standard_normal((len(t), ORACLE_DRAWS))
             self._oracle = {"t": t, "paths": sequential_evidence(self.contrast_alt, self.contrast_true, ay_std, noise)}
         return self._oracle
+
+    def observation_oracle(self) -> list[dict] | None:
+        """The observation oracle's paths (:func:`observation_evidence`, :data:`WET_FRICTION` against the reference
+        road), one per noise draw: the ride's own log, then :data:`OBSERVATION_DRAWS` - 1 rides of the same case with
+        other sensor and rider noise (seeded by the ride), from the ride's start: ``[{"t": (K,), "g": (K,)}]``; None
+        without an alternative (too fast)."""
+        if self.contrast_alt is None:
+            return None
+        if self._observation is None:
+            logs = [self.ride.log]
+            ss = np.random.SeedSequence([self.case.seed, KINDS.index(self.case.kind), 73])
+            logs += [ride_case(self.case, noise_seed=int(s)).log for s in ss.generate_state(OBSERVATION_DRAWS - 1)]
+            self._observation = [{"t": np.asarray(lg.t, dtype=float),
+                                  "g": observation_evidence(lg, noise_pct=self.case.noise_pct)} for lg in logs]
+        return self._observation
 
 
 def truth_from_log(log, vehicle=None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -651,14 +748,17 @@ def estimator_figures(res: CaseResult, rel_tol: float = 0.2, excitation_g: float
     return out
 
 
-def ride_case(case: RideCase):
+def ride_case(case: RideCase, noise_seed: int | None = None):
     """Ride ``case``: :func:`ptw_env.ride.ride_scenario` with its friction schedule, effects, sensor noise and
-    offsets, the rider holding the line; the route's curvature added to the log as ``kappa`` (the map)."""
+    offsets, the rider holding the line; the route's curvature added to the log as ``kappa`` (the map).
+    ``noise_seed``: the seed of the sensors' and the rider's noise (default the case's seed, which also draws
+    the route)."""
     from ptw_env.ride import ride_scenario
 
     sensors = {"sensors": SensorConfig.from_percent(case.noise_pct, bias=case.bias)} if case.bias else \
         {"noise_pct": case.noise_pct}
-    ride = ride_scenario(case.scenario, effects=case.effects, seed=case.seed, friction=case.friction,
+    ride = ride_scenario(case.scenario, effects=case.effects, seed=case.seed if noise_seed is None else int(noise_seed),
+                         friction=case.friction,
                          scenario_seed=case.seed, hold_line=True, **sensors)
     prof = case.scenario.profile(0.01, seed=case.seed)
     ride.log.columns["kappa"] = np.asarray(prof.kappa[: len(ride.log.t)], dtype=float)
@@ -694,7 +794,12 @@ __all__ = [
     "dry_contrast",
     "friction_contrast",
     "oracle_threshold",
+    "observation_evidence",
+    "OBSERVATION_DRAWS",
+    "OBSERVATION_SWITCH_RATE",
+    "page_cusum",
     "sequential_evidence",
+    "window_max",
     "ORACLE_DRAWS",
     "ORACLE_FALSE_SHARE",
     "WET_FRICTION",
