@@ -15,7 +15,7 @@ import pytest
 from assist.risk import FrictionConfig, FrictionEstimate, RiskMonitor
 from assist.risk.evaluation import (LATENCY_S, LEAD_S, OBSERVATION_DRAWS, ORACLE_DRAWS, dry_contrast,
                                     information_onset, make_case, observation_evidence, oracle_threshold, page_cusum,
-                                    ride_case, run_case, sequential_evidence)
+                                    ride_case, run_case, sequential_evidence, window_max)
 from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0, peak_friction, utilisation_of_secant
 from assist.risk.pipeline import RiskPipeline, default_estimator
 from ptw_env.dynamics import compile_plant
@@ -274,9 +274,16 @@ def test_page_cusum_is_pages_recursion_and_refuses_what_is_not_a_number():
         g = np.maximum(0.0, g + x[k])
         want[k] = g
     np.testing.assert_allclose(page_cusum(x), want, atol=1e-12)
-    for bad in ([], 1.0, [1.0, math.nan], ["a"], [1j], [True]):
+    for bad in ([], 1.0, [1.0, math.nan], ["a"], [1j], [True], [1e308, 1e308], [-1e308, -1e308]):
         with pytest.raises(ValueError, match="CUSUM"):
             page_cusum(bad)
+    p = {"t": np.arange(5.0), "g": np.array([0.0, 1.0, 3.0, 2.0, 9.0])}
+    assert window_max([p, p], [1.0, 0.0], [3.0, 4.0]) == [3.0, 9.0]  # each draw its own window
+    assert window_max([p, p], 1.0, [3.0, 0.5]) == [3.0, 0.0] and window_max([p], 6.0, 7.0) is None
+    with pytest.raises(ValueError, match="not finite"):
+        window_max([{"t": p["t"], "g": np.array([0.0, math.nan, 0.0, 0.0, 0.0])}], 0.0, 4.0)
+    with pytest.raises(ValueError, match="window"):
+        window_max([p, p], [1.0, 2.0, 3.0], 4.0)
 
 
 def test_the_observation_oracle_is_the_two_model_filters_likelihood_ratio_and_refuses_bad_input():
@@ -302,6 +309,12 @@ def test_the_observation_oracle_is_the_two_model_filters_likelihood_ratio_and_re
             observation_evidence(log, mu_alt=mu_alt)
     with pytest.raises(ValueError, match="ride log"):
         observation_evidence(None)
+    short = type("Log", (), {"columns": {**log.columns, "tau": np.asarray(log.columns["tau"])[:-1]}})()
+    with pytest.raises(ValueError, match="as long as"):
+        observation_evidence(short)
+    for bad in (-1, 1.7, True, "3", 2**64):
+        with pytest.raises(ValueError, match="noise_seed"):
+            ride_case(case, noise_seed=bad)
 
 
 @pytest.mark.parametrize("seed, read", [(2, True), (1, True), (8, False)])

@@ -85,8 +85,9 @@ which reads less, not more). What the margin costs, against a reader of the same
 road (the risk evaluation's observation oracle, ``assist.risk.evaluation.observation_evidence``: this filter with
 the dry and the wet friction only, its CUSUM's threshold set in the simulation at 2 % of dry rides, 7.1-7.7
 nats): on the three wet straights of 160 evaluation seeds where it could warn and this filter did not, this
-filter's evidence came within 2 nats of the oracle's on the same noise (12.3 / 14.3, 8.6 / 9.8, 5.6 / 6.7): it
-is the bar, not the gathering, that leaves them unread (README, "Risk warning").
+filter's evidence came within 2 nats of the oracle's on the same noise (12.3 / 14.3, 8.6 / 9.8, 5.6 / 6.7; the
+filter's from re-runs not stored): on those three rides it is the bar, more than the gathering, that leaves them
+unread (README, "Risk warning").
 
 Consistency: the comparison of the models means something only where one of them explains the sensors. The
 filter low-passes (``NIS_TAU_S`` = 1 s) the probability-weighted normalised innovation squared per channel read,

@@ -63,13 +63,14 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ptw_env.effects import as_effects
 from ptw_env.friction import MU_RANGE, REFERENCE_FRICTION, SCALINGS, FrictionPlants, FrictionSchedule
 from ptw_env.sensors import SensorConfig
 from ptw_env.scenarios import (Scenario, ScenarioError, require_positive, Segment, segments_to_grid, space_based,
                                speed_plan, make_scenario)
-from ptw_env.vehicle import G, REFERENCE_SCOOTER
+from ptw_env.vehicle import G, REFERENCE_SCOOTER, Vehicle
 from ptw_env.vehicle_files import vehicle_of_log
 
 #: Base effects of every evaluation ride: saturating tires whose peak friction is the road's.
@@ -378,7 +379,7 @@ def sequential_evidence(contrast_alt: np.ndarray, contrast_true: np.ndarray, ay_
     return page_cusum(((c[:, None] + ay_std * n) * s[:, None] - 0.5 * s[:, None] ** 2) / var)
 
 
-def page_cusum(increments) -> np.ndarray:
+def page_cusum(increments: ArrayLike) -> np.ndarray:
     """Page's CUSUM ``g_k = max(0, g_{k-1} + l_k)``, ``g_{-1} = 0``, of log-likelihood-ratio increments ``l_k``
     along the first axis (one path per column) [nats] (E. S. Page, Biometrika 41, 1954; Basseville and Nikiforov,
     *Detection of Abrupt Changes*, 1993, eq. 2.2.10), as ``S_k - min(0, min_{j <= k} S_j)`` with ``S`` the
@@ -393,12 +394,16 @@ def page_cusum(increments) -> np.ndarray:
         raise ValueError(f"the CUSUM's increments must be real numbers, got {increments!r}"[:200]) from None
     if x.ndim == 0 or x.shape[0] == 0 or not np.all(np.isfinite(x)):
         raise ValueError("the CUSUM's increments must be a finite, non-empty array")
-    S = np.cumsum(x, axis=0)
-    return S - np.minimum(0.0, np.minimum.accumulate(S, axis=0))
+    with np.errstate(over="ignore", invalid="ignore"):
+        S = np.cumsum(x, axis=0)
+        g = S - np.minimum(0.0, np.minimum.accumulate(S, axis=0))
+    if not np.all(np.isfinite(g)):
+        raise ValueError("the CUSUM's sum overflows: increments too large")
+    return g
 
 
-def observation_evidence(log, mu_alt: float = WET_FRICTION, noise_pct: float = 5.0,
-                         mu_ref: float = REFERENCE_FRICTION, vehicle=None) -> np.ndarray:
+def observation_evidence(log: Any, mu_alt: float = WET_FRICTION, noise_pct: float = 5.0,
+                         mu_ref: float = REFERENCE_FRICTION, vehicle: Vehicle | None = None) -> np.ndarray:
     """The observation oracle's evidence over a ride ``log`` [nats] (K,): a reader of the warning's own sensors that
     knows the two roads to tell apart, the reference road ``mu_ref`` and the wet road ``mu_alt``, but not the
     state. It is the friction filter (:class:`assist.estimation.friction_imm.FrictionIMM`: the saturating plant,
@@ -407,8 +412,12 @@ def observation_evidence(log, mu_alt: float = WET_FRICTION, noise_pct: float = 5
     (:func:`page_cusum`) of its models' log-likelihood ratio ``ln Lambda_alt - ln Lambda_ref`` per sample (the
     likelihood of the sample's outputs given the past ones, from each model's extended Kalman filter; Blom and
     Bar-Shalom 1988, eq. 11). For two known hypotheses that is the CUSUM of :func:`sequential_evidence` on all
-    channels, with the state estimated instead of known, up to the filter's linearisation: what a warning reading
-    these sensors could do if it knew what the wet road is. ``log``: a ride log (logs.md) with its ``tau`` and
+    channels, with the state estimated instead of known, approximately: the filter linearises, and its mixing
+    (however small the switching) starts the unlikely model from the likely one's state at each sample, so each
+    likelihood is a one-step comparison from the state the sensors make likelier, not that of a hypothesis
+    tracked on its own from the start. A reference for what a warning reading these sensors could do if it knew
+    what the wet road is, not a bound: a road whose friction lies between its two (the patch's ramp) it explains
+    worse than a filter of more levels. ``log``: a ride log (logs.md) with its ``tau`` and
     ``vx`` columns; ``vehicle``: the filter's vehicle (default the reference scooter)."""
     from assist.estimation.friction_imm import FrictionIMM
 
@@ -425,6 +434,9 @@ def observation_evidence(log, mu_alt: float = WET_FRICTION, noise_pct: float = 5
         tau, vx = (np.asarray(log.columns[n], dtype=float) for n in ("tau", "vx"))
     except (AttributeError, KeyError, TypeError, ValueError) as e:
         raise ValueError(f"a ride log with the outputs, tau and vx is needed ({e})") from None
+    if not (len(Y) == tau.size == vx.size and tau.ndim == vx.ndim == 1):
+        raise ValueError(f"a ride log's columns must be as long as one another: outputs {len(Y)}, tau {tau.shape}, "
+                         f"vx {vx.shape}")
     imm = FrictionIMM(noise_pct=noise_pct, vehicle=vehicle, mu_ref=mu[0], grid=mu, lower=0.5 * (1.0 + mu[1] / mu[0]),
                       switch_rate=OBSERVATION_SWITCH_RATE)
     inc = np.empty(len(Y))
@@ -434,19 +446,30 @@ def observation_evidence(log, mu_alt: float = WET_FRICTION, noise_pct: float = 5
     return page_cusum(inc)
 
 
-def window_max(paths: list[dict], t0: float, t1: float) -> list[float] | None:
-    """The largest value of each draw's path (``{"t", "g"}``) over ``t0 <= t <= t1`` [s], rounded to 0.01 (the
-    draws with no sample there left out); None where no draw has one.
+def window_max(paths: list[dict], t0, t1) -> list[float] | None:
+    """The largest value of each draw's path (``{"t", "g"}``, g >= 0) over ``t0 <= t <= t1`` [s] (one instant
+    for all draws, or one per draw), rounded to 0.01; a draw with no sample there gathered nothing there (0); None
+    where no draw has one (an empty window).
 
-    >>> window_max([{"t": np.arange(5.0), "g": np.array([0.0, 1.0, 3.0, 2.0, 9.0])}], 1.0, 3.0)
-    [3.0]
+    >>> p = {"t": np.arange(5.0), "g": np.array([0.0, 1.0, 3.0, 2.0, 9.0])}
+    >>> window_max([p, p], 1.0, [3.0, 0.5])
+    [3.0, 0.0]
     """
-    out = []
-    for p in paths:
-        k = (p["t"] >= t0) & (p["t"] <= t1)
-        if k.any():
-            out.append(round(float(np.max(p["g"][k])), 2))
-    return out or None
+    n = len(paths)
+    try:
+        a, b = (np.broadcast_to(_real_array(v), (n,)) for v in (t0, t1))
+    except (TypeError, ValueError):
+        raise ValueError(f"the window's ends must be instants [s], one or one per draw ({n}), got {t0!r}, "
+                         f"{t1!r}"[:200]) from None
+    out, seen = [], False
+    for p, lo, hi in zip(paths, a, b):
+        g = _real_array(p["g"])
+        k = (p["t"] >= lo) & (p["t"] <= hi)
+        if not np.all(np.isfinite(g[k])):
+            raise ValueError("an oracle's path is not finite")
+        seen = seen or bool(k.any())
+        out.append(round(float(np.max(g[k])), 2) if k.any() else 0.0)
+    return out if seen else None
 
 
 def _real_array(v) -> np.ndarray:
@@ -590,8 +613,9 @@ class CaseResult:
             if seq is not None and self.drop_time() is not None:  # the largest evidence LEAD_S or more ahead
                 k = (seq["t"] >= self.drop_time()) & (seq["t"] <= te - LEAD_S)
                 e["sequential_max"] = _rounded(seq["paths"][k].max(axis=0)) if k.any() else None
-                if obs is not None:
-                    e["observation_max"] = window_max(obs, self.drop_time(), te - LEAD_S)
+                if obs is not None:  # each draw between its own drop and LEAD_S before its own loss
+                    drops, losses = self._draw_instants(te)
+                    e["observation_max"] = window_max(obs, drops, losses - LEAD_S)
             ev.append(e)
         latency = None
         if t_ref is not None:
@@ -602,8 +626,9 @@ class CaseResult:
             if seq is not None and self.drop_time() is not None:
                 k = (seq["t"] >= t_ref) & (seq["t"] <= t_ref + LATENCY_S)
                 latency["sequential_max"] = _rounded(seq["paths"][k].max(axis=0))
-                if obs is not None:
-                    latency["observation_max"] = window_max(obs, t_ref, t_ref + LATENCY_S)
+                if obs is not None:  # each draw from its own drop (the reference instant of a wet ride)
+                    drops = self._draw_instants(None)[0]
+                    latency["observation_max"] = window_max(obs, drops, drops + LATENCY_S)
         return {
             "kind": self.case.kind,
             "seed": self.case.seed,
@@ -647,12 +672,30 @@ class CaseResult:
         if self.contrast_alt is None:
             return None
         if self._observation is None:
-            logs = [self.ride.log]
+            out = [{"t": np.asarray(self.run.t, dtype=float), "g": observation_evidence(
+                self.ride.log, noise_pct=self.case.noise_pct), "drop": self.drop_time(), "events": self.events}]
             ss = np.random.SeedSequence([self.case.seed, KINDS.index(self.case.kind), 73])
-            logs += [ride_case(self.case, noise_seed=int(s)).log for s in ss.generate_state(OBSERVATION_DRAWS - 1)]
-            self._observation = [{"t": np.asarray(lg.t, dtype=float),
-                                  "g": observation_evidence(lg, noise_pct=self.case.noise_pct)} for lg in logs]
+            for seed in ss.generate_state(OBSERVATION_DRAWS - 1):
+                ride = ride_case(self.case, noise_seed=int(seed))
+                c = ride.log.columns
+                t, mu = np.asarray(ride.log.t, dtype=float), np.asarray(c["mu_true"], dtype=float)
+                k = np.flatnonzero(mu < mu[0] - 1e-9)
+                util = true_utilisation(ride.states, c["vx_true"], mu, self.case.friction, self.case.effects)
+                out.append({"t": t, "g": observation_evidence(ride.log, noise_pct=self.case.noise_pct),
+                            "drop": float(t[k[0]]) if k.size else None, "events": saturation_events(t, util)})
+            self._observation = out
         return self._observation
+
+    def _draw_instants(self, te: float | None) -> tuple[np.ndarray, np.ndarray]:
+        """Each observation draw's drop and its loss of grip matching the ride's loss at ``te`` (its own event
+        nearest ``te``, within :data:`LEAD_S`; else, a draw that did not lose its grip there, ``te`` itself) [s]."""
+        drops, losses = [], []
+        for d in self._observation:
+            drops.append(math.nan if d["drop"] is None else d["drop"])
+            ev = np.asarray(d["events"], dtype=float)
+            j = int(np.argmin(np.abs(ev - te))) if te is not None and ev.size else -1
+            losses.append(float(ev[j]) if j >= 0 and abs(ev[j] - te) <= LEAD_S else te)
+        return np.array(drops), np.array(losses, dtype=float)
 
 
 def truth_from_log(log, vehicle=None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -755,6 +798,9 @@ def ride_case(case: RideCase, noise_seed: int | None = None):
     the route)."""
     from ptw_env.ride import ride_scenario
 
+    if noise_seed is not None and (isinstance(noise_seed, bool) or not isinstance(noise_seed, numbers.Integral)
+                                   or not 0 <= noise_seed < 2**63):
+        raise ValueError(f"noise_seed must be a whole number in [0, 2**63), got {noise_seed!r}")
     sensors = {"sensors": SensorConfig.from_percent(case.noise_pct, bias=case.bias)} if case.bias else \
         {"noise_pct": case.noise_pct}
     ride = ride_scenario(case.scenario, effects=case.effects, seed=case.seed if noise_seed is None else int(noise_seed),
