@@ -33,8 +33,8 @@ the yaw and roll moments). And the observation oracle
 (:func:`assist.risk.evaluation.observation_evidence`), a reader of all the warning's sensors that
 does not know the state: the friction filter with two models only, the dry and the wet friction,
 and the CUSUM of their likelihood ratio, its threshold set the same way on the dry rides (its own
-noise and 4 other draws each, each a ride again: 4.2 of the evaluation's 9.7 minutes; each draw
-judged between its own drop and its own loss of grip). It knows the wet road's friction, which the
+noise and 4 other draws each, each a ride again; each draw judged between its own drop and its
+own loss of grip). It knows the wet road's friction, which the
 warning does not, and it is a reference, not a bound: a friction between its two (the patch's
 ramp) it explains worse than a filter of more levels.
 

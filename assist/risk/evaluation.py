@@ -107,7 +107,7 @@ WET_FRICTION = 0.45
 ORACLE_FALSE_SHARE = 0.02
 ORACLE_DRAWS = 100
 #: Noise draws of the observation oracle (:meth:`CaseResult.observation_oracle`): the ride's own, then rides of the
-#: same case with other sensor and rider noise (each a ride and a two-model filter pass, about 0.5 s).
+#: same case with other sensor and rider noise (each a ride and a two-model filter pass).
 OBSERVATION_DRAWS = 5
 #: Rate of switching between the observation oracle's two models [1/s] (:func:`observation_evidence`): as good as
 #: none (1e-8 of a model's probability a sample at 0.01 s), which the filter needs to be positive.
@@ -481,14 +481,15 @@ def _real_array(v) -> np.ndarray:
 
 
 def oracle_threshold(dry_maxima) -> float:
-    """The sequential oracle's threshold [nats]: the ``1 - ORACLE_FALSE_SHARE`` quantile of the largest
-    :func:`sequential_evidence` of dry rides (pooled noise draws), so that it warns on that share of them."""
+    """An oracle's threshold [nats]: the ``1 - ORACLE_FALSE_SHARE`` quantile of the largest evidence of dry rides
+    (pooled noise draws; :func:`sequential_evidence`, :func:`observation_evidence`), so that it warns on that
+    share of them."""
     try:
         m = _real_array(dry_maxima).ravel()
     except (TypeError, ValueError):
         raise ValueError(f"the dry rides' largest evidence must be numbers, got {dry_maxima!r}") from None
     if m.size == 0:
-        raise ValueError("the sequential oracle's threshold needs dry rides")
+        raise ValueError("an oracle's threshold needs dry rides")
     if not np.all(np.isfinite(m)):
         raise ValueError("the dry rides' largest evidence must be finite")
     return float(np.quantile(m, 1.0 - ORACLE_FALSE_SHARE))
@@ -569,8 +570,7 @@ class CaseResult:
 
     def drop_time(self) -> float | None:
         """First instant the true friction is below the ride's starting friction [s] (None: no drop)."""
-        k = np.flatnonzero(self.mu_true < self.mu_true[0] - 1e-9)
-        return float(self.run.t[k[0]]) if k.size else None
+        return _drop_time(self.run.t, self.mu_true)
 
     def reference_time(self) -> float | None:
         """The instant the lead is counted from [s]: the friction drop (wet), the critical curve's entry
@@ -591,8 +591,8 @@ class CaseResult:
         leaves, the latency of the first caution after a drop and the load then, false-alarm
         episodes, peak true utilisation, friction estimate at the end and its truth (``run``: another
         assessment of the same ride, e.g. :func:`assist.risk.offline.replay`); with ``observation`` also the
-        observation oracle's largest values (:meth:`observation_oracle`, which rides the case again: about 2 s
-        a ride)."""
+        observation oracle's largest values (:meth:`observation_oracle`, which rides the case
+        :data:`OBSERVATION_DRAWS` - 1 times again)."""
         run = self.run if run is None else run
         t = run.t
         lv = run.level_code
@@ -677,12 +677,10 @@ class CaseResult:
             ss = np.random.SeedSequence([self.case.seed, KINDS.index(self.case.kind), 73])
             for seed in ss.generate_state(OBSERVATION_DRAWS - 1):
                 ride = ride_case(self.case, noise_seed=int(seed))
-                c = ride.log.columns
-                t, mu = np.asarray(ride.log.t, dtype=float), np.asarray(c["mu_true"], dtype=float)
-                k = np.flatnonzero(mu < mu[0] - 1e-9)
-                util = true_utilisation(ride.states, c["vx_true"], mu, self.case.friction, self.case.effects)
+                t = np.asarray(ride.log.t, dtype=float)
+                mu, util = _ride_truth(self.case, ride)
                 out.append({"t": t, "g": observation_evidence(ride.log, noise_pct=self.case.noise_pct),
-                            "drop": float(t[k[0]]) if k.size else None, "events": saturation_events(t, util)})
+                            "drop": _drop_time(t, mu), "events": saturation_events(t, util)})
             self._observation = out
         return self._observation
 
@@ -819,14 +817,26 @@ def run_case(case: RideCase, pipeline=None) -> CaseResult:
     ride = ride_case(case)
     c = ride.log.columns
     run = assess_log(ride.log, pipeline=pipeline, noise_pct=case.noise_pct)
-    mu = np.asarray(c["mu_true"], dtype=float)
-    util = true_utilisation(ride.states, c["vx_true"], mu, case.friction, case.effects)
+    mu, util = _ride_truth(case, ride)
     signed = friction_contrast(ride.states, c["vx_true"], mu, case.friction, case.effects)
     alt = None if case.kind == "too_fast" else friction_contrast(ride.states, c["vx_true"], WET_FRICTION,
                                                                   case.friction, case.effects)
     return CaseResult(case=case, ride=ride, run=run, mu_true=mu, utilisation=util,
                       events=saturation_events(ride.log.t, util), contrast=np.abs(signed), contrast_true=signed,
                       contrast_alt=alt)
+
+
+def _ride_truth(case: RideCase, ride) -> tuple[np.ndarray, np.ndarray]:
+    """The true friction per sample and the true utilisation (:func:`true_utilisation`) of a ride of ``case``."""
+    c = ride.log.columns
+    mu = np.asarray(c["mu_true"], dtype=float)
+    return mu, true_utilisation(ride.states, c["vx_true"], mu, case.friction, case.effects)
+
+
+def _drop_time(t: np.ndarray, mu: np.ndarray) -> float | None:
+    """First instant ``t`` at which ``mu`` is below its first value [s] (None: no drop)."""
+    k = np.flatnonzero(np.asarray(mu) < mu[0] - 1e-9)
+    return float(t[k[0]]) if k.size else None
 
 
 def _rounded(x: np.ndarray) -> list[float]:
