@@ -36,7 +36,11 @@ and the CUSUM of their likelihood ratio, its threshold set the same way on the d
 noise and 4 other draws each, each a ride again; each draw judged between its own drop and its
 own loss of grip). It knows the wet road's friction, which the
 warning does not, and it is a reference, not a bound: a friction between its two (the patch's
-ramp) it explains worse than a filter of more levels.
+ramp) it explains worse than a filter of more levels. Its threshold holds in the simulation, where the model
+is exact; held to measured rides (``--real``, default the robot-bicycle rides of ``../shared/data``, taken as
+dry, each with its own vehicle file), it is raised to the smallest value above its largest evidence on them,
+what the model's error alone sums to, and its counts are given at that threshold too. Each loss of grip also
+keeps the friction filter's own evidence there (``filter_evidence_max``), each dry ride its largest.
 
 Writes ``results.json``, ``rides.json``, ``results.md`` and ``timeline_<type>.png`` (one seed
 per type) into ``--out``.
@@ -53,6 +57,7 @@ import json
 import math
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -280,6 +285,32 @@ def markdown(summary: dict, n: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def real_floor(p: argparse.ArgumentParser, folder: Path) -> dict[str, float]:
+    """The observation oracle's largest evidence on each measured ride ``*.csv`` of ``folder`` (read as logs.md
+    says, the part its sidecar marks usable, with the vehicle its sidecar names) [nats]: what the model's error
+    alone sums to on a dry road (the rides are taken as dry: state it for a folder of your own). A folder that is
+    not one, or holds no log, or a log that cannot be read stops the run (``--real none`` runs without it, e.g.
+    where ``../shared/data`` is not beside the repository)."""
+    from assist.risk.evaluation import observation_evidence
+    from ptw_env.logs import read_log, usable_part
+    from ptw_env.vehicle_files import vehicle_of_log
+
+    if not folder.is_dir():
+        p.error(f"--real: {folder} is not a folder (give a folder of measured dry rides, or 'none')")
+    paths = sorted(folder.glob("*.csv"))
+    if not paths:
+        p.error(f"--real: no ride log (*.csv) in {folder} (give a folder of measured dry rides, or 'none')")
+    out = {}
+    for path in paths:
+        try:
+            log, _ = usable_part(read_log(str(path)))
+            vehicle = vehicle_of_log(log.meta or {}, str(path))
+            out[path.stem] = float(observation_evidence(log, vehicle=vehicle).max())
+        except (OSError, ValueError) as e:  # the log's, the vehicle file's and the filter's errors name the place
+            p.error(f"--real: {e}" if str(path) in str(e) else f"--real: {path}: {e}")
+    return out
+
+
 def _pct(x: list[float], q: float) -> float | None:
     """Percentile ``q`` of ``x`` (None: empty, or beyond the values: rides that never warned count as inf)."""
     if not x:
@@ -293,22 +324,29 @@ def _could(maxima: list[float] | None, h: float | None) -> bool:
     return bool(maxima) and h is not None and float(np.mean(np.asarray(maxima) >= h)) >= 0.5
 
 
-def targets(rides: list[dict]) -> dict:
+def targets(rides: list[dict], real: dict[str, float] | None = None) -> dict:
     """Issue 20's targets per ride type: lead, latency and false warnings, with the oracles beside them (the
     window oracle, :func:`assist.risk.evaluation.information_onset`; the sequential oracle,
     :func:`assist.risk.evaluation.sequential_evidence`, its threshold set on the dry rides of this run to warn
-    on ORACLE_FALSE_SHARE of them)."""
+    on ORACLE_FALSE_SHARE of them; the observation oracle, the same way, and, given ``real`` (the observation
+    oracle's largest evidence on each measured dry ride [nats]), also at the smallest threshold above all of
+    them and its simulated one: held to the real rides' model error)."""
     from assist.risk.evaluation import ORACLE_FALSE_SHARE, oracle_threshold
 
     dry_max = [m for r in rides if r["kind"].startswith("dry") for m in r.get("oracle_dry_max", [])]
     h = oracle_threshold(dry_max) if dry_max else None
     dry_obs = [m for r in rides if r["kind"].startswith("dry") for m in r.get("observation_dry_max") or []]
     ho = oracle_threshold(dry_obs) if dry_obs else None
+    # held to measured rides: the smallest threshold on the stored 0.01-nat grid above the largest measured value
+    hr = None if ho is None or not real else max(ho, math.floor(100.0 * max(real.values()) + 1.0) / 100.0)
     out: dict = {"_sequential_oracle": {"threshold_nats": None if h is None else round(h, 3),
                                         "false_share": ORACLE_FALSE_SHARE, "dry_ride_draws": len(dry_max)},
                  "_observation_oracle": {"threshold_nats": None if ho is None else round(ho, 3),
                                          "false_share": ORACLE_FALSE_SHARE, "dry_ride_draws": len(dry_obs),
-                                         "largest_dry_nats": max(dry_obs) if dry_obs else None}}
+                                         "largest_dry_nats": max(dry_obs) if dry_obs else None,
+                                         "real_threshold_nats": hr,
+                                         "real_dry_max": None if real is None else {k: round(v, 3)
+                                                                                    for k, v in real.items()}}}
     for kind in KINDS:
         rs = [r for r in rides if r["kind"] == kind]
         if not rs:
@@ -329,7 +367,10 @@ def targets(rides: list[dict]) -> dict:
                                      "sequential_could": None if h is None or "sequential_max" not in e
                                      else _could(e["sequential_max"], h),
                                      "observation_could": None if ho is None or "observation_max" not in e
-                                     else _could(e["observation_max"], ho)}
+                                     else _could(e["observation_max"], ho),
+                                     "observation_real_could": None if hr is None or "observation_max" not in e
+                                     else _could(e["observation_max"], hr),
+                                     "filter_evidence_max": e.get("filter_evidence_max")}
                                     for r in rs for e in r["events"] if e in miss],
                          "oracle_warnable_0p5s": sum(1 for e in late if (e["information_lead_bound_s"] or 0.0) >= LEAD_S),
                          "sequential_warnable_0p5s": (sum(1 for e in late if _could(e.get("sequential_max"), h))
@@ -337,6 +378,9 @@ def targets(rides: list[dict]) -> dict:
                          "observation_warnable_0p5s": (sum(1 for e in late if _could(e.get("observation_max"), ho))
                                                        if ho is not None and any("observation_max" in e for e in late)
                                                        else None),
+                         "observation_real_warnable_0p5s": (sum(1 for e in late if _could(e.get("observation_max"), hr))
+                                                            if hr is not None and any("observation_max" in e for e in late)
+                                                            else None),
                          # every loss of grip, also those within WARNABLE_S of the drop / curve entry
                          "all_warned_0p5s": sum(1 for e in ev if (e["caution"]["lead_s"] or 0.0) >= LEAD_S),
                          "all_oracle_0p5s": sum(1 for e in ev if (e["information_lead_bound_s"] or 0.0) >= LEAD_S),
@@ -354,11 +398,15 @@ def targets(rides: list[dict]) -> dict:
                             "caution_p95_s": _pct(c + [math.inf] * (len(lat) - len(c)), 95), "oracle_within": sum(1 for x in o if x <= LATENCY_S),
                             "oracle_median_s": _pct(o, 50), "oracle_p95_s": _pct(o, 95),
                             "sequential_within": sum(1 for x in lat if _could(x.get("sequential_max"), h)),
-                            "observation_within": sum(1 for x in lat if _could(x.get("observation_max"), ho))}
+                            "observation_within": sum(1 for x in lat if _could(x.get("observation_max"), ho)),
+                            "observation_real_within": None if hr is None
+                            else sum(1 for x in lat if _could(x.get("observation_max"), hr))}
         if kind.startswith("dry"):
             d["false"] = {"rides_with_danger": sum(1 for r in rs if r["danger_episodes"] > 0),
                           "rides_with_caution": sum(1 for r in rs if r["caution_episodes"] > 0),
-                          "caution_share": round(sum(1 for r in rs if r["caution_episodes"] > 0) / len(rs), 4)}
+                          "caution_share": round(sum(1 for r in rs if r["caution_episodes"] > 0) / len(rs), 4),
+                          "filter_evidence_max": max((r["filter_evidence_dry_max"] for r in rs
+                                                      if r.get("filter_evidence_dry_max") is not None), default=None)}
         out[kind] = d
     return out
 
@@ -387,13 +435,20 @@ def targets_markdown(tg: dict, scaling: str) -> str:
              "friction filter with those two models only), its threshold set the same way ("
              + ("not evaluated" if ho is None else
                 f"{ho:g} nats over {oo['dry_ride_draws']} ride-draws, largest {oo['largest_dry_nats']:g}")
-             + "), the same rule over its draws (the ride's own sensors and other noise).", "",
+             + "), the same rule over its draws (the ride's own sensors and other noise)"
+             + ("" if oo.get("real_threshold_nats") is None else
+                "; held to measured rides, its threshold at least above its largest evidence on "
+                f"{len(oo['real_dry_max'])} measured dry rides (their own vehicle; "
+                + ", ".join(f"{k} {v:g}" for k, v in sorted(oo["real_dry_max"].items(), key=lambda kv: -kv[1])[:2])
+                + f" nats the largest): {oo['real_threshold_nats']:g} nats, the last figure in brackets")
+             + ".", "",
              "| ride | rides | lead: losses of grip >= 1 s after drop/entry, caution >= 0.5 s ahead (oracle could; "
-             "sequential oracle could; observation oracle could) "
+             "sequential oracle could; observation oracle could; the same held to measured rides) "
              "| every loss of grip: caution >= 0.5 s ahead (oracle could); median lead [s] "
              "| latency: loaded drops (|F|/Fz >= 0.2), caution <= 0.3 s; median / p95 [s] (oracle; sequential "
-             "oracle within 0.3 s; observation oracle within 0.3 s) "
-             "| false: rides with danger / caution (share) |", "|---|---|---|---|---|---|"]
+             "oracle within 0.3 s; observation oracle within 0.3 s; the same held to measured rides) "
+             "| false: rides with danger / caution (share); the filter's largest evidence [nats] |",
+             "|---|---|---|---|---|---|"]
     for kind, d in tg.items():
         if kind.startswith("_"):
             continue
@@ -402,8 +457,10 @@ def targets_markdown(tg: dict, scaling: str) -> str:
         fa = d.get("false")
         sq = None if not le or le.get("sequential_warnable_0p5s") is None or h is None else le["sequential_warnable_0p5s"]
         ob = None if not le or ho is None else le.get("observation_warnable_0p5s")
+        obr = None if not le else le.get("observation_real_warnable_0p5s")
         lead = "-" if not le else (f"{le['warned_0p5s']} of {le['events_1s_after']} ({le['oracle_warnable_0p5s']}; "
-                                   f"{'-' if sq is None else sq}; {'-' if ob is None else ob})")
+                                   f"{'-' if sq is None else sq}; {'-' if ob is None else ob}"
+                                   + ("" if obr is None else f"; {obr}") + ")")
         alle = "-" if not le else (f"{le['all_warned_0p5s']} of {le['events']} ({le['all_oracle_0p5s']}); "
                                    f"{le['all_caution_lead_s']['median']}")
         lat = "-" if not la else (f"{la['caution_within']} of {la['rides_loaded']} ({la['caution_never']} never); "
@@ -411,8 +468,12 @@ def targets_markdown(tg: dict, scaling: str) -> str:
                                   f"(oracle {la['oracle_within']} of "
                                   f"{la['rides_loaded']}; {la['oracle_median_s']} / {la['oracle_p95_s']}; "
                                   f"{'-' if h is None else la.get('sequential_within', '-')}; "
-                                  f"{'-' if ho is None else la.get('observation_within', '-')})")
-        fal = "-" if not fa else f"{fa['rides_with_danger']} / {fa['rides_with_caution']} ({100 * fa['caution_share']:.1f} %)"
+                                  f"{'-' if ho is None else la.get('observation_within', '-')}"
+                                  + ("" if oo.get("real_threshold_nats") is None
+                                     else f"; {la.get('observation_real_within', '-')}") + ")")
+        fal = "-" if not fa else (f"{fa['rides_with_danger']} / {fa['rides_with_caution']} "
+                                  f"({100 * fa['caution_share']:.1f} %); "
+                                  f"{'-' if fa.get('filter_evidence_max') is None else fa['filter_evidence_max']}")
         lines.append(f"| {kind} | {d['rides']} | {lead} | {alle} | {lat} | {fal} |")
     return "\n".join(lines) + "\n"
 
@@ -436,6 +497,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--road-bank", default="auto", metavar="RAD|auto|none",
                    help="road bank given to the estimator (RiskPipeline road_bank): 'auto' (default, estimated on "
                         "line), a number in rad, or 'none' (the estimator's level road)")
+    p.add_argument("--real", default=str(Path(__file__).resolve().parents[2] / "shared" / "data" / "robot_bicycle"),
+                   metavar="DIR|none",
+                   help="folder of measured dry rides (logs.md, each with its vehicle) on which the observation "
+                        "oracle's model error is measured (default ../shared/data/robot_bicycle; 'none': not held to "
+                        "measured rides)")
     add_overwrite(p)
     a = p.parse_args(argv)
     global _ROAD_BANK
@@ -459,6 +525,9 @@ def main(argv: list[str] | None = None) -> int:
                 f"{a.figure_seed}")
     if a.workers < 1:
         p.error(f"--workers must be >= 1, got {a.workers}")
+    real = None
+    if a.real.lower() != "none":  # before the rides: a log the oracle cannot read stops the run here, not after
+        real = real_floor(p, Path(a.real))
     out = output_dir(p, a.out, a.overwrite)
     fseed = a.first_seed if a.figure_seed is None else a.figure_seed
     jobs = [(k, s, str(out / f"timeline_{k}.png") if s == fseed else None)
@@ -479,7 +548,7 @@ def main(argv: list[str] | None = None) -> int:
     variants = {k: v for k, v in VARIANTS.items() if a.scaling != "peak" or k == "default"}
     summary = {v: summarise(rides, v) for v in variants}
     est = estimator_summary(rides)
-    tg = targets(rides)
+    tg = targets(rides, real)
     res = {"seeds": list(range(a.first_seed, a.first_seed + a.seeds)), "road_bank": _ROAD_BANK, "scaling": a.scaling,
            "variants": variants, "targets": tg, "summary": summary, "no_ride": no_ride,
            "estimator": est, "rides": rides, "seconds": round(time.perf_counter() - t0, 1)}

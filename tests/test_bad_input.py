@@ -207,3 +207,22 @@ def test_the_mutation_sweep_finds_no_defect_small(tmp_path):
 def test_the_mutation_sweep_finds_no_defect_full(tmp_path):
     rep = fuzz.sweep(1000, 300, seed=0, timeout_s=60, progress=False, workdir=tmp_path)
     assert rep["defects"] == [], json.dumps(rep["defects"][:5], indent=1)
+
+
+@pytest.mark.parametrize("content", [None, "t,delta\n0.0,x\n"])
+def test_eval_risk_refuses_a_folder_of_measured_rides_it_cannot_read_before_the_rides(tmp_path, content):
+    """``scripts/eval_risk.py --real``: a folder without a log, or with a log that is not one, is refused in one line
+    naming the option (and the file), exit 2, before any ride and without creating the output folder."""
+    import subprocess
+
+    real = tmp_path / "real"
+    real.mkdir()
+    if content is not None:
+        (real / "bad.csv").write_text(content, encoding="utf-8")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "eval_risk.py"), "--seeds", "1", "--real", str(real),
+                        "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert "--real" in last and (content is None or "bad.csv" in last), last
+    assert not out.exists()

@@ -274,9 +274,20 @@ def test_page_cusum_is_pages_recursion_and_refuses_what_is_not_a_number():
         g = np.maximum(0.0, g + x[k])
         want[k] = g
     np.testing.assert_allclose(page_cusum(x), want, atol=1e-12)
-    for bad in ([], 1.0, [1.0, math.nan], ["a"], [1j], [True], [1e308, 1e308], [-1e308, -1e308]):
+    void = np.random.default_rng(4).random(500) < 0.05  # and with the sum void (0) at some samples
+    g = np.zeros(3)
+    for k in range(len(x)):
+        g = np.zeros(3) if void[k] else np.maximum(0.0, g + x[k])
+        want[k] = g
+    np.testing.assert_allclose(page_cusum(x, void), want, atol=1e-12)
+    np.testing.assert_allclose(page_cusum(x[:, 0], void), want[:, 0], atol=1e-12)
+    np.testing.assert_allclose(page_cusum([-1e20, 1.0, 0.5]), [0.0, 1.0, 1.5])  # the recursion, not S - min S
+    for bad in ([], 1.0, [1.0, math.nan], ["a"], [1j], [True], [1e308, 1e308]):
         with pytest.raises(ValueError, match="CUSUM"):
             page_cusum(bad)
+    for bad in ([True], [0, 1, 0], void[:-1]):
+        with pytest.raises(ValueError, match="void"):
+            page_cusum(x[:3] if len(bad) != 499 else x, bad)
     p = {"t": np.arange(5.0), "g": np.array([0.0, 1.0, 3.0, 2.0, 9.0])}
     assert window_max([p, p], [1.0, 0.0], [3.0, 4.0]) == [3.0, 9.0]  # each draw its own window
     assert window_max([p, p], 1.0, [3.0, 0.5]) == [3.0, 0.0] and window_max([p], 6.0, 7.0) is None
@@ -309,12 +320,59 @@ def test_the_observation_oracle_is_the_two_model_filters_likelihood_ratio_and_re
             observation_evidence(log, mu_alt=mu_alt)
     with pytest.raises(ValueError, match="ride log"):
         observation_evidence(None)
-    short = type("Log", (), {"columns": {**log.columns, "tau": np.asarray(log.columns["tau"])[:-1]}})()
+    short = type("Log", (), {"dt": log.dt, "columns": {**log.columns, "tau": np.asarray(log.columns["tau"])[:-1]}})()
     with pytest.raises(ValueError, match="as long as"):
         observation_evidence(short)
     for bad in (-1, 1.7, True, "3", 2**64):
         with pytest.raises(ValueError, match="noise_seed"):
             ride_case(case, noise_seed=bad)
+
+
+def test_the_observation_oracle_reads_at_the_logs_sample_time():
+    """A log at 0.02 s (the ride of seed 5 with every other sample): the oracle's filter predicts over 0.02 s, as
+    the two-model filter built at that ``dt`` and run on it by hand (the recursion and the CUSUM written out, void
+    where the models do not explain the sensors: the rider's torque held over 0.02 s is not what was ridden)."""
+    from assist.estimation.friction_imm import FrictionIMM
+    from assist.estimation.identification import NIS_EXPLAINED
+    from assist.risk.pipeline import output_matrix
+
+    log = ride_case(make_case("wet_straight", 5)).log
+    cols = {k: np.asarray(v)[:1200:2] for k, v in log.columns.items()}
+    half = type("Log", (), {"dt": 2 * log.dt, "columns": cols})()
+    imm = FrictionIMM(dt=2 * log.dt, grid=[0.9, 0.45], lower=0.75, switch_rate=1e-6)
+    Y, g, want = output_matrix(cols), 0.0, []
+    for k in range(len(Y)):
+        imm.update(Y[k], cols["tau"][k], cols["vx"][k])
+        g = 0.0 if imm.nis > NIS_EXPLAINED else max(0.0, g + imm.log_likelihoods[1] - imm.log_likelihoods[0])
+        want.append(g)
+    np.testing.assert_allclose(observation_evidence(half), want, rtol=1e-9, atol=1e-9)
+
+
+def test_the_observation_oracle_reads_nothing_where_its_models_do_not_explain_a_real_ride():
+    """Measured robot-bicycle run 04-009 (its 7-8 Hz steer-torque oscillation, data README): the two models' normalised
+    innovations squared rise above NIS_EXPLAINED (3) there, and without the gate their sum would read a wet road
+    (above 100 nats); with it the oracle stays under 5 nats (measured: 206 without the gate, 2.2 with it)."""
+    from assist.estimation.friction_imm import FrictionIMM
+    from assist.estimation.identification import NIS_EXPLAINED
+    from assist.risk.pipeline import output_matrix
+    from ptw_env.logs import read_log, usable_part
+    from ptw_env.vehicle_files import vehicle_of_log
+
+    from conftest import DATA
+
+    path = DATA / "robot_bicycle" / "rb_20130704_009.csv"
+    log, _ = usable_part(read_log(path))
+    vehicle = vehicle_of_log(log.meta or {}, path)
+    imm = FrictionIMM(dt=float(log.dt), vehicle=vehicle, grid=[0.9, 0.45], lower=0.75, switch_rate=1e-6)
+    Y, tau, vx = output_matrix(log.columns), np.asarray(log.columns["tau"]), np.asarray(log.columns["vx"])
+    inc, nis = np.empty(len(Y)), np.empty(len(Y))
+    for k in range(len(Y)):
+        imm.update(Y[k], tau[k], vx[k])
+        inc[k], nis[k] = imm.log_likelihoods[1] - imm.log_likelihoods[0], imm.nis
+    g = observation_evidence(log, vehicle=vehicle)
+    assert nis.max() > NIS_EXPLAINED and page_cusum(inc).max() > 100.0
+    np.testing.assert_allclose(g, page_cusum(inc, nis > NIS_EXPLAINED), atol=1e-9)
+    assert g.max() < 5.0
 
 
 @pytest.mark.parametrize("seed, read", [(2, True), (1, True), (8, False)])
@@ -347,3 +405,45 @@ def test_curve_entered_too_fast_on_a_damp_road_is_cautioned_ahead_when_the_warm_
         assert lead >= LEAD_S and ev["t"] - lead < entry
     else:
         assert mu_hat == pytest.approx(imm.mu_ref) and lead < LEAD_S and ev["t"] - lead > entry
+
+
+def test_the_filters_evidence_is_taken_from_the_runs_inputs_and_the_oracle_held_to_measured_rides(monkeypatch):
+    """``filter_evidence`` reads the evidence the monitor was given (None without it); ``scripts/eval_risk.py``'s
+    targets count the observation oracle again at the threshold held to measured rides: the smallest value on the
+    stored 0.01-nat grid above their largest evidence (14.3011 -> 14.31), never below the simulated threshold, with
+    the same half-of-draws rule; without measured rides those counts are None, and the table is written either way."""
+    import importlib.util
+
+    from types import SimpleNamespace as NS
+
+    from assist.risk.evaluation import filter_evidence
+    from conftest import ROOT
+
+    run = NS(inputs=[NS(reading=NS(evidence=v)) for v in (0.0, 2.5, 1.0)])
+    assert filter_evidence(run).tolist() == [0.0, 2.5, 1.0]
+    assert filter_evidence(NS(inputs=None)) is None and filter_evidence(NS(inputs=[NS(reading=None)])) is None
+    monkeypatch.syspath_prepend(str(ROOT / "scripts"))
+    spec = importlib.util.spec_from_file_location("eval_risk_under_test", ROOT / "scripts" / "eval_risk.py")
+    er = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(er)
+    dry = {"kind": "dry", "seed": 1, "events": [], "caution_episodes": 0, "danger_episodes": 0, "latency": None,
+           "oracle_dry_max": [1.0] * 50, "observation_dry_max": [1.0, 2.0, 3.0, 4.0, 5.0],
+           "filter_evidence_dry_max": 4.2}
+    event = {"t": 30.0, "after_reference_s": 5.0, "caution": {"lead_s": 0.1}, "information_lead_bound_s": None,
+             "sequential_max": [0.0] * 100, "observation_max": [9.0, 9.0, 14.31, 20.0, 20.0], "filter_evidence_max": 12.0}
+    wet = {"kind": "wet_straight", "seed": 2, "events": [event], "caution_episodes": 1, "danger_episodes": 0,
+           "latency": None}
+    for real, hr, could in (({"a": 14.3011, "b": 0.2}, 14.31, True), ({"a": 14.3101}, 14.32, False),
+                            ({"a": 1.0}, None, True), (None, None, None)):
+        tg = er.targets([dry, wet], real)
+        oo = tg["_observation_oracle"]
+        lead = tg["wet_straight"]["lead"]
+        assert oo["threshold_nats"] < 5.0 and lead["observation_warnable_0p5s"] == 1
+        if hr is None and real is not None:  # a measured floor below the simulated threshold: that one holds
+            hr = oo["threshold_nats"]
+        assert oo["real_threshold_nats"] == hr
+        assert lead["observation_real_warnable_0p5s"] == (None if could is None else int(could))
+        assert lead["missed"][0]["observation_real_could"] is could and lead["missed"][0]["filter_evidence_max"] == 12.0
+        assert tg["dry"]["false"]["filter_evidence_max"] == 4.2
+        md = er.targets_markdown(tg, "peak")
+        assert ("held to measured rides, its threshold" in md) is (real is not None)

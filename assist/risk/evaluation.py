@@ -379,13 +379,17 @@ def sequential_evidence(contrast_alt: np.ndarray, contrast_true: np.ndarray, ay_
     return page_cusum(((c[:, None] + ay_std * n) * s[:, None] - 0.5 * s[:, None] ** 2) / var)
 
 
-def page_cusum(increments: ArrayLike) -> np.ndarray:
+def page_cusum(increments: ArrayLike, void: ArrayLike | None = None) -> np.ndarray:
     """Page's CUSUM ``g_k = max(0, g_{k-1} + l_k)``, ``g_{-1} = 0``, of log-likelihood-ratio increments ``l_k``
     along the first axis (one path per column) [nats] (E. S. Page, Biometrika 41, 1954; Basseville and Nikiforov,
-    *Detection of Abrupt Changes*, 1993, eq. 2.2.10), as ``S_k - min(0, min_{j <= k} S_j)`` with ``S`` the
-    cumulative sum (the same recursion, unrolled).
+    *Detection of Abrupt Changes*, 1993, eq. 2.2.10), the recursion itself (the unrolled form ``S_k - min S_j``
+    loses the digits of a small sum after a large negative one). ``void`` (K,) booleans: ``g_k = 0`` where true
+    (nothing is read there; the sum starts again after it), as the friction filter's evidence
+    (:class:`assist.estimation.friction_imm.FrictionIMM`).
 
     >>> page_cusum([1.0, -3.0, 2.0, 0.5]).tolist()
+    [1.0, 0.0, 2.0, 2.5]
+    >>> page_cusum([1.0, 2.0, 2.0, 0.5], void=[False, True, False, False]).tolist()
     [1.0, 0.0, 2.0, 2.5]
     """
     try:
@@ -394,9 +398,17 @@ def page_cusum(increments: ArrayLike) -> np.ndarray:
         raise ValueError(f"the CUSUM's increments must be real numbers, got {increments!r}"[:200]) from None
     if x.ndim == 0 or x.shape[0] == 0 or not np.all(np.isfinite(x)):
         raise ValueError("the CUSUM's increments must be a finite, non-empty array")
+    v = np.zeros(x.shape[0], dtype=bool)
+    if void is not None:
+        v = np.asarray(void)
+        if v.dtype != bool or v.shape != x.shape[:1]:
+            raise ValueError(f"void must be {x.shape[0]} booleans, one per increment, got {void!r}"[:200])
+    g = np.empty_like(x)
+    last = np.zeros(x.shape[1:])
     with np.errstate(over="ignore", invalid="ignore"):
-        S = np.cumsum(x, axis=0)
-        g = S - np.minimum(0.0, np.minimum.accumulate(S, axis=0))
+        for k in range(x.shape[0]):
+            last = np.zeros_like(last) if v[k] else np.maximum(0.0, last + x[k])
+            g[k] = last
     if not np.all(np.isfinite(g)):
         raise ValueError("the CUSUM's sum overflows: increments too large")
     return g
@@ -417,9 +429,14 @@ def observation_evidence(log: Any, mu_alt: float = WET_FRICTION, noise_pct: floa
     likelihood is a one-step comparison from the state the sensors make likelier, not that of a hypothesis
     tracked on its own from the start. A reference for what a warning reading these sensors could do if it knew
     what the wet road is, not a bound: a road whose friction lies between its two (the patch's ramp) it explains
-    worse than a filter of more levels. ``log``: a ride log (logs.md) with its ``tau`` and
-    ``vx`` columns; ``vehicle``: the filter's vehicle (default the reference scooter)."""
+    worse than a filter of more levels. As the filter's evidence, the sum is void (0) where the models do not
+    explain the sensors (their normalised innovation squared, :attr:`FrictionIMM.nis`, above
+    :data:`assist.estimation.identification.NIS_EXPLAINED`): there their comparison says nothing (on a real ride
+    whose steer torque oscillates, robot bicycle run 04-009, the sum reached 206 nats without the gate, 2.2 with
+    it). ``log``: a ride log (logs.md) with its ``tau`` and ``vx`` columns, read at its own sample time ``dt``;
+    ``vehicle``: the filter's vehicle (default the reference scooter)."""
     from assist.estimation.friction_imm import FrictionIMM
+    from assist.estimation.identification import NIS_EXPLAINED
 
     from .pipeline import output_matrix
 
@@ -432,18 +449,31 @@ def observation_evidence(log: Any, mu_alt: float = WET_FRICTION, noise_pct: floa
     try:
         Y = output_matrix(log.columns)
         tau, vx = (np.asarray(log.columns[n], dtype=float) for n in ("tau", "vx"))
+        dt = float(log.dt)
     except (AttributeError, KeyError, TypeError, ValueError) as e:
         raise ValueError(f"a ride log with the outputs, tau and vx is needed ({e})") from None
     if not (len(Y) == tau.size == vx.size and tau.ndim == vx.ndim == 1):
         raise ValueError(f"a ride log's columns must be as long as one another: outputs {len(Y)}, tau {tau.shape}, "
                          f"vx {vx.shape}")
-    imm = FrictionIMM(noise_pct=noise_pct, vehicle=vehicle, mu_ref=mu[0], grid=mu, lower=0.5 * (1.0 + mu[1] / mu[0]),
+    imm = FrictionIMM(noise_pct=noise_pct, dt=dt, vehicle=vehicle, mu_ref=mu[0], grid=mu, lower=0.5 * (1.0 + mu[1] / mu[0]),
                       switch_rate=OBSERVATION_SWITCH_RATE)
     inc = np.empty(len(Y))
+    void = np.empty(len(Y), dtype=bool)
     for k in range(len(Y)):
         imm.update(Y[k], tau[k], vx[k])
         inc[k] = imm.log_likelihoods[1] - imm.log_likelihoods[0]
-    return page_cusum(inc)
+        void[k] = imm.nis > NIS_EXPLAINED
+    return page_cusum(inc, void)
+
+
+def filter_evidence(run: Any) -> np.ndarray | None:
+    """The friction filter's own evidence per sample of a risk run [nats] (K,): its CUSUM ``g`` as the monitor
+    was given it (:attr:`assist.estimation.friction_imm.FrictionReading.evidence`); None where the estimator gave
+    no friction reading (a stiffness estimator) or the run kept no inputs."""
+    inputs = getattr(run, "inputs", None)
+    if inputs is None or len(inputs) == 0 or any(getattr(i.reading, "evidence", None) is None for i in inputs):
+        return None
+    return np.array([float(i.reading.evidence) for i in inputs])
 
 
 def window_max(paths: list[dict], t0, t1) -> list[float] | None:
@@ -592,13 +622,16 @@ class CaseResult:
         episodes, peak true utilisation, friction estimate at the end and its truth (``run``: another
         assessment of the same ride, e.g. :func:`assist.risk.offline.replay`); with ``observation`` also the
         observation oracle's largest values (:meth:`observation_oracle`, which rides the case
-        :data:`OBSERVATION_DRAWS` - 1 times again)."""
+        :data:`OBSERVATION_DRAWS` - 1 times again); where the estimator reads the friction itself, the filter's own
+        evidence (:func:`filter_evidence`): its largest between the drop and ``LEAD_S`` before each loss of grip
+        (``filter_evidence_max``), over a dry ride (``filter_evidence_dry_max``) [nats]."""
         run = self.run if run is None else run
         t = run.t
         lv = run.level_code
         t_ref = self.reference_time()
         seq = self.sequential_oracle()
         obs = self.observation_oracle() if observation else None
+        gf = filter_evidence(run)
         t_info = None
         if t_ref is not None and self.contrast is not None:
             ay_std = SensorConfig.from_percent(self.case.noise_pct).noise_std["ay"]
@@ -610,6 +643,9 @@ class CaseResult:
             if t_ref is not None:
                 e["after_reference_s"] = float(te - t_ref)
                 e["information_lead_bound_s"] = None if t_info is None or t_info > te else float(te - t_info)
+            if gf is not None and self.drop_time() is not None:  # the filter's own, LEAD_S or more ahead
+                k = (t >= self.drop_time()) & (t <= te - LEAD_S)
+                e["filter_evidence_max"] = round(float(gf[k].max()), 3) if k.any() else None
             if seq is not None and self.drop_time() is not None:  # the largest evidence LEAD_S or more ahead
                 k = (seq["t"] >= self.drop_time()) & (seq["t"] <= te - LEAD_S)
                 e["sequential_max"] = _rounded(seq["paths"][k].max(axis=0)) if k.any() else None
@@ -647,6 +683,7 @@ class CaseResult:
                else {}),
             **({"observation_dry_max": window_max(obs, -math.inf, math.inf)}
                if obs is not None and self.drop_time() is None else {}),
+            **({"filter_evidence_dry_max": round(float(gf.max()), 3)} if gf is not None and t_ref is None else {}),
         }
 
     def sequential_oracle(self) -> dict | None:
@@ -851,6 +888,7 @@ __all__ = [
     "friction_contrast",
     "oracle_threshold",
     "observation_evidence",
+    "filter_evidence",
     "OBSERVATION_DRAWS",
     "OBSERVATION_SWITCH_RATE",
     "page_cusum",
