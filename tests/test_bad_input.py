@@ -226,3 +226,20 @@ def test_eval_risk_refuses_a_folder_of_measured_rides_it_cannot_read_before_the_
     last = r.stderr.strip().splitlines()[-1]
     assert "--real" in last and (content is None or "bad.csv" in last), last
     assert not out.exists()
+
+
+@pytest.mark.parametrize("content", ["{}", "not json", None])
+def test_eval_risk_misses_refuses_a_file_that_is_not_a_stored_run_before_the_rides(tmp_path, content):
+    """``scripts/eval_risk_misses.py``: a results file that is not one of ``scripts/eval_risk.py``'s with the
+    observation oracle (or no file) is refused in one line naming it, exit 2, without creating the output folder."""
+    import subprocess
+
+    path = tmp_path / "results.json"
+    if content is not None:
+        path.write_text(content, encoding="utf-8")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, str(ROOT / "scripts" / "eval_risk_misses.py"), str(path), "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert str(path) in r.stderr.strip().splitlines()[-1]
+    assert not out.exists()

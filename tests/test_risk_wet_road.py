@@ -255,6 +255,11 @@ def test_the_sequential_oracle_sees_the_earlier_corner_and_not_the_last_one(pipe
     assert "observation_dry_max" not in dry_ride.summary()  # asked for only: it rides the case again
     dry = dry_ride.summary(observation=True)
     assert len(dry["oracle_dry_max"]) == ORACLE_DRAWS and len(dry["observation_dry_max"]) == OBSERVATION_DRAWS
+    more = dry_ride.summary(observation=True, draws=OBSERVATION_DRAWS + 1)["observation_dry_max"]
+    assert len(more) == OBSERVATION_DRAWS + 1 and more[:-1] == dry["observation_dry_max"]  # the first draws kept
+    for bad in (0, 1.5, True, "3"):
+        with pytest.raises(ValueError, match="draws"):
+            dry_ride.observation_oracle(bad)
     h = oracle_threshold(dry["oracle_dry_max"])
     ho = oracle_threshold(dry["observation_dry_max"])
     late = run_case(make_case("wet_straight", 5), pipeline).summary(observation=True)["events"][0]
@@ -266,8 +271,8 @@ def test_the_sequential_oracle_sees_the_earlier_corner_and_not_the_last_one(pipe
 
 
 def test_page_cusum_is_pages_recursion_and_refuses_what_is_not_a_number():
-    """The unrolled form ``S_k - min(0, min S_j)`` against the recursion ``g_k = max(0, g_{k-1} + l_k)`` written out,
-    per column."""
+    """Against the recursion ``g_k = max(0, g_{k-1} + l_k)`` written out, per column, with and without void samples;
+    a small sum after a large negative one keeps its digits."""
     x = np.random.default_rng(3).normal(-0.1, 1.0, (500, 3))
     g, want = np.zeros(3), np.empty_like(x)
     for k in range(len(x)):

@@ -615,14 +615,14 @@ class CaseResult:
         k = min(int(np.searchsorted(self.run.t, t0)), len(self.ride.states) - 1)
         return float(np.max(np.abs(self.ride.states[k, 6:8]) / np.array([tires.Fzf, tires.Fzr])))
 
-    def summary(self, run=None, observation: bool = False) -> dict[str, Any]:
+    def summary(self, run=None, observation: bool = False, draws: int = OBSERVATION_DRAWS) -> dict[str, Any]:
         """Figures of the ride: events with lead times (caution, danger) and the time from the drop
         (or curve entry) to them, the tires' information onset (:func:`information_onset`) and the lead it
         leaves, the latency of the first caution after a drop and the load then, false-alarm
         episodes, peak true utilisation, friction estimate at the end and its truth (``run``: another
         assessment of the same ride, e.g. :func:`assist.risk.offline.replay`); with ``observation`` also the
-        observation oracle's largest values (:meth:`observation_oracle`, which rides the case
-        :data:`OBSERVATION_DRAWS` - 1 times again); where the estimator reads the friction itself, the filter's own
+        observation oracle's largest values (:meth:`observation_oracle` with ``draws`` draws, which rides the case
+        ``draws - 1`` times again); where the estimator reads the friction itself, the filter's own
         evidence (:func:`filter_evidence`): its largest between the drop and ``LEAD_S`` before each loss of grip
         (``filter_evidence_max``), over a dry ride (``filter_evidence_dry_max``) [nats]."""
         run = self.run if run is None else run
@@ -630,7 +630,7 @@ class CaseResult:
         lv = run.level_code
         t_ref = self.reference_time()
         seq = self.sequential_oracle()
-        obs = self.observation_oracle() if observation else None
+        obs = self.observation_oracle(draws) if observation else None
         gf = filter_evidence(run)
         t_info = None
         if t_ref is not None and self.contrast is not None:
@@ -650,7 +650,7 @@ class CaseResult:
                 k = (seq["t"] >= self.drop_time()) & (seq["t"] <= te - LEAD_S)
                 e["sequential_max"] = _rounded(seq["paths"][k].max(axis=0)) if k.any() else None
                 if obs is not None:  # each draw between its own drop and LEAD_S before its own loss
-                    drops, losses = self._draw_instants(te)
+                    drops, losses = self._draw_instants(obs, te)
                     e["observation_max"] = window_max(obs, drops, losses - LEAD_S)
             ev.append(e)
         latency = None
@@ -663,7 +663,7 @@ class CaseResult:
                 k = (seq["t"] >= t_ref) & (seq["t"] <= t_ref + LATENCY_S)
                 latency["sequential_max"] = _rounded(seq["paths"][k].max(axis=0))
                 if obs is not None:  # each draw from its own drop (the reference instant of a wet ride)
-                    drops = self._draw_instants(None)[0]
+                    drops = self._draw_instants(obs, None)[0]
                     latency["observation_max"] = window_max(obs, drops, drops + LATENCY_S)
         return {
             "kind": self.case.kind,
@@ -701,31 +701,37 @@ class CaseResult:
             self._oracle = {"t": t, "paths": sequential_evidence(self.contrast_alt, self.contrast_true, ay_std, noise)}
         return self._oracle
 
-    def observation_oracle(self) -> list[dict] | None:
+    def observation_oracle(self, draws: int = OBSERVATION_DRAWS) -> list[dict] | None:
         """The observation oracle's paths (:func:`observation_evidence`, :data:`WET_FRICTION` against the reference
-        road), one per noise draw: the ride's own log, then :data:`OBSERVATION_DRAWS` - 1 rides of the same case with
-        other sensor and rider noise (seeded by the ride), from the ride's start: ``[{"t": (K,), "g": (K,)}]``; None
-        without an alternative (too fast)."""
+        road), one per noise draw: the ride's own log, then ``draws`` - 1 (default :data:`OBSERVATION_DRAWS` - 1)
+        rides of the same case with other sensor and rider noise (seeded by the ride: the first draws are the same
+        whatever ``draws``), from the ride's start: ``[{"t": (K,), "g": (K,)}]``; None without an alternative
+        (too fast)."""
+        if isinstance(draws, bool) or not isinstance(draws, numbers.Integral) or not 1 <= draws <= 10_000:
+            raise ValueError(f"draws must be a whole number in [1, 10000], got {draws!r}")
         if self.contrast_alt is None:
             return None
         if self._observation is None:
-            out = [{"t": np.asarray(self.run.t, dtype=float), "g": observation_evidence(
+            self._observation = [{"t": np.asarray(self.run.t, dtype=float), "g": observation_evidence(
                 self.ride.log, noise_pct=self.case.noise_pct), "drop": self.drop_time(), "events": self.events}]
+        if len(self._observation) < draws:
+            out = self._observation
             ss = np.random.SeedSequence([self.case.seed, KINDS.index(self.case.kind), 73])
-            for seed in ss.generate_state(OBSERVATION_DRAWS - 1):
+            for seed in ss.generate_state(draws - 1)[len(out) - 1:]:
                 ride = ride_case(self.case, noise_seed=int(seed))
                 t = np.asarray(ride.log.t, dtype=float)
                 mu, util = _ride_truth(self.case, ride)
                 out.append({"t": t, "g": observation_evidence(ride.log, noise_pct=self.case.noise_pct),
                             "drop": _drop_time(t, mu), "events": saturation_events(t, util)})
-            self._observation = out
-        return self._observation
+        return self._observation[:draws]
 
-    def _draw_instants(self, te: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """Each observation draw's drop and its loss of grip matching the ride's loss at ``te`` (its own event
-        nearest ``te``, within :data:`LEAD_S`; else, a draw that did not lose its grip there, ``te`` itself) [s]."""
+    @staticmethod
+    def _draw_instants(obs: list[dict], te: float | None) -> tuple[np.ndarray, np.ndarray]:
+        """Each observation draw's (``obs``) drop and its loss of grip matching the ride's loss at ``te`` (its own
+        event nearest ``te``, within :data:`LEAD_S`; else, a draw that did not lose its grip there, ``te`` itself)
+        [s]."""
         drops, losses = [], []
-        for d in self._observation:
+        for d in obs:
             drops.append(math.nan if d["drop"] is None else d["drop"])
             ev = np.asarray(d["events"], dtype=float)
             j = int(np.argmin(np.abs(ev - te))) if te is not None and ev.size else -1
