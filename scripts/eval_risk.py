@@ -65,7 +65,7 @@ from ptw_env.cli import road_bank
 from ptw_env.jobs import JobsError, run_jobs
 
 from assist.risk.evaluation import (EVAL_KINDS, KINDS, LATENCY_LOAD, LATENCY_S, LEAD_S, WARNABLE_S, estimator_figures,
-                                    make_case, run_case)
+                                    make_case, oracle_could, run_case)
 from ptw_env.friction import SCALINGS
 from assist.risk.offline import plot_risk, replay
 from _outputs import add_overwrite, output_dir, write_results  # noqa: E402  (scripts/_outputs.py)
@@ -319,11 +319,6 @@ def _pct(x: list[float], q: float) -> float | None:
     return round(v, 3) if math.isfinite(v) else None
 
 
-def _could(maxima: list[float] | None, h: float | None) -> bool:
-    """An oracle could (at threshold ``h``): in at least half of its noise draws."""
-    return bool(maxima) and h is not None and float(np.mean(np.asarray(maxima) >= h)) >= 0.5
-
-
 def targets(rides: list[dict], real: dict[str, float] | None = None) -> dict:
     """Issue 20's targets per ride type: lead, latency and false warnings, with the oracles beside them (the
     window oracle, :func:`assist.risk.evaluation.information_onset`; the sequential oracle,
@@ -365,20 +360,20 @@ def targets(rides: list[dict], real: dict[str, float] | None = None) -> dict:
                                      "information_lead_bound_s": None if e["information_lead_bound_s"] is None
                                      else round(e["information_lead_bound_s"], 2),
                                      "sequential_could": None if h is None or "sequential_max" not in e
-                                     else _could(e["sequential_max"], h),
+                                     else oracle_could(e["sequential_max"], h),
                                      "observation_could": None if ho is None or "observation_max" not in e
-                                     else _could(e["observation_max"], ho),
+                                     else oracle_could(e["observation_max"], ho),
                                      "observation_real_could": None if hr is None or "observation_max" not in e
-                                     else _could(e["observation_max"], hr),
+                                     else oracle_could(e["observation_max"], hr),
                                      "filter_evidence_max": e.get("filter_evidence_max")}
                                     for r in rs for e in r["events"] if e in miss],
                          "oracle_warnable_0p5s": sum(1 for e in late if (e["information_lead_bound_s"] or 0.0) >= LEAD_S),
-                         "sequential_warnable_0p5s": (sum(1 for e in late if _could(e.get("sequential_max"), h))
+                         "sequential_warnable_0p5s": (sum(1 for e in late if oracle_could(e.get("sequential_max"), h))
                                                       if any("sequential_max" in e for e in late) else None),
-                         "observation_warnable_0p5s": (sum(1 for e in late if _could(e.get("observation_max"), ho))
+                         "observation_warnable_0p5s": (sum(1 for e in late if oracle_could(e.get("observation_max"), ho))
                                                        if ho is not None and any("observation_max" in e for e in late)
                                                        else None),
-                         "observation_real_warnable_0p5s": (sum(1 for e in late if _could(e.get("observation_max"), hr))
+                         "observation_real_warnable_0p5s": (sum(1 for e in late if oracle_could(e.get("observation_max"), hr))
                                                             if hr is not None and any("observation_max" in e for e in late)
                                                             else None),
                          # every loss of grip, also those within WARNABLE_S of the drop / curve entry
@@ -397,10 +392,10 @@ def targets(rides: list[dict], real: dict[str, float] | None = None) -> dict:
                             "caution_median_s": _pct(c + [math.inf] * (len(lat) - len(c)), 50),
                             "caution_p95_s": _pct(c + [math.inf] * (len(lat) - len(c)), 95), "oracle_within": sum(1 for x in o if x <= LATENCY_S),
                             "oracle_median_s": _pct(o, 50), "oracle_p95_s": _pct(o, 95),
-                            "sequential_within": sum(1 for x in lat if _could(x.get("sequential_max"), h)),
-                            "observation_within": sum(1 for x in lat if _could(x.get("observation_max"), ho)),
+                            "sequential_within": sum(1 for x in lat if oracle_could(x.get("sequential_max"), h)),
+                            "observation_within": sum(1 for x in lat if oracle_could(x.get("observation_max"), ho)),
                             "observation_real_within": None if hr is None
-                            else sum(1 for x in lat if _could(x.get("observation_max"), hr))}
+                            else sum(1 for x in lat if oracle_could(x.get("observation_max"), hr))}
         if kind.startswith("dry"):
             d["false"] = {"rides_with_danger": sum(1 for r in rs if r["danger_episodes"] > 0),
                           "rides_with_caution": sum(1 for r in rs if r["caution_episodes"] > 0),

@@ -27,36 +27,32 @@ import numpy as np
 
 from ptw_env.jobs import JobsError, run_jobs
 
-from assist.risk.evaluation import LATENCY_LOAD, LATENCY_S, LEAD_S, OBSERVATION_DRAWS, WARNABLE_S, make_case, run_case
+from assist.risk.evaluation import (LATENCY_LOAD, LATENCY_S, OBSERVATION_DRAWS, make_case, oracle_could, oracle_share,
+                                    run_case)
 from _outputs import add_overwrite, output_dir, write_results  # noqa: E402  (scripts/_outputs.py)
-
-
-def _share(maxima: list[float] | None, h: float) -> float | None:
-    """The share of the draws whose largest evidence reaches ``h``."""
-    return None if not maxima else float(np.mean(np.asarray(maxima, dtype=float) >= h))
 
 
 def misses(res: dict) -> list[dict]:
     """The misses of one stored run (``results.json`` of ``scripts/eval_risk.py``) where an oracle could at the
-    run's thresholds (the half-of-draws rule): ``[{"kind", "seed", "target", "t", "stored"}]``."""
+    run's thresholds: the lead misses its targets list with ``sequential_could`` or ``observation_could``, and the
+    loaded patches not cautioned within ``LATENCY_S`` where an oracle could: ``[{"kind", "seed", "target", "t",
+    "stored"}]`` (``stored``: the observation oracle's stored largest evidence per draw)."""
     tg = res["targets"]
     h, ho = tg["_sequential_oracle"]["threshold_nats"], tg["_observation_oracle"]["threshold_nats"]
+    rides = {(r["kind"], r["seed"]): r for r in res["rides"]}
     out = []
-    for r in res["rides"]:
-        if r["kind"] not in ("wet_straight", "wet_corner"):
-            continue
-        for e in r["events"]:
-            late = (e.get("after_reference_s") or 0.0) >= WARNABLE_S
-            if late and (e["caution"]["lead_s"] or 0.0) < LEAD_S and (
-                    (_share(e.get("sequential_max"), h) or 0.0) >= 0.5 or (_share(e.get("observation_max"), ho) or 0.0) >= 0.5):
-                out.append({"kind": r["kind"], "seed": r["seed"], "target": "lead", "t": e["t"],
+    for kind in ("wet_straight", "wet_corner"):
+        for m in (tg.get(kind, {}).get("lead") or {}).get("missed", []):
+            if m["sequential_could"] or m["observation_could"]:
+                e = min(rides[(kind, m["seed"])]["events"], key=lambda e: abs(e["t"] - m["t"]))
+                out.append({"kind": kind, "seed": m["seed"], "target": "lead", "t": e["t"],
                             "stored": e["observation_max"]})
-        la = r.get("latency")
-        if la and la["load_at_reference"] >= LATENCY_LOAD and not (
-                la["caution_after_s"] is not None and la["caution_after_s"] <= LATENCY_S) and (
-                (_share(la.get("sequential_max"), h) or 0.0) >= 0.5 or (_share(la.get("observation_max"), ho) or 0.0) >= 0.5):
-            out.append({"kind": r["kind"], "seed": r["seed"], "target": "latency", "t": None,
-                        "stored": la["observation_max"]})
+        for (k, seed), r in rides.items():
+            la = r.get("latency")
+            if k == kind and la and la["load_at_reference"] >= LATENCY_LOAD and not (
+                    la["caution_after_s"] is not None and la["caution_after_s"] <= LATENCY_S) and (
+                    oracle_could(la.get("sequential_max"), h) or oracle_could(la.get("observation_max"), ho)):
+                out.append({"kind": k, "seed": seed, "target": "latency", "t": None, "stored": la["observation_max"]})
     return out
 
 
@@ -126,8 +122,8 @@ def main(argv: list[str] | None = None) -> int:
                 p.error(f"{r['results']}: {m['kind']} {m['seed']}: the first draws {got[:len(m['stored'])]} are not "
                         f"the stored {m['stored']} (another version of the code?)")
             rows.append({**m, "results": r["results"], "draws": len(got), "maxima": got,
-                         "share_at_threshold": _share(got, r["threshold_nats"]), "threshold_nats": r["threshold_nats"],
-                         "share_held": _share(got, r["real_threshold_nats"]),
+                         "share_at_threshold": oracle_share(got, r["threshold_nats"]), "threshold_nats": r["threshold_nats"],
+                         "share_held": oracle_share(got, r["real_threshold_nats"]),
                          "real_threshold_nats": r["real_threshold_nats"]})
     doc = {"draws": a.draws, "runs": [{k: v for k, v in r.items() if k != "misses"} for r in runs], "misses": rows,
            "seconds": round(time.perf_counter() - t0, 1)}

@@ -106,6 +106,8 @@ WET_FRICTION = 0.45
 #: on at most 2 % of them); it is judged over this many noise draws per ride.
 ORACLE_FALSE_SHARE = 0.02
 ORACLE_DRAWS = 100
+#: An oracle could where at least this share of its noise draws reach its threshold.
+ORACLE_COULD_SHARE = 0.5
 #: Noise draws of the observation oracle (:meth:`CaseResult.observation_oracle`): the ride's own, then rides of the
 #: same case with other sensor and rider noise (each a ride and a two-model filter pass).
 OBSERVATION_DRAWS = 5
@@ -510,6 +512,24 @@ def _real_array(v) -> np.ndarray:
     return a.astype(float)
 
 
+def oracle_share(maxima: ArrayLike | None, h: float) -> float | None:
+    """The share of an oracle's noise draws whose largest evidence ``maxima`` reaches its threshold ``h`` [nats]
+    (None: no draw)."""
+    if maxima is None or len(maxima) == 0:
+        return None
+    return float(np.mean(_real_array(maxima) >= h))
+
+
+def oracle_could(maxima: ArrayLike | None, h: float | None) -> bool:
+    """Whether an oracle could (at threshold ``h``): in at least :data:`ORACLE_COULD_SHARE` of its noise draws.
+
+    >>> oracle_could([1.0, 3.0, 5.0, 7.0], 5.0), oracle_could([1.0, 3.0, 5.0], 5.0), oracle_could(None, 5.0)
+    (True, False, False)
+    """
+    share = None if h is None else oracle_share(maxima, h)
+    return share is not None and share >= ORACLE_COULD_SHARE
+
+
 def oracle_threshold(dry_maxima) -> float:
     """An oracle's threshold [nats]: the ``1 - ORACLE_FALSE_SHARE`` quantile of the largest evidence of dry rides
     (pooled noise draws; :func:`sequential_evidence`, :func:`observation_evidence`), so that it warns on that
@@ -893,6 +913,9 @@ __all__ = [
     "dry_contrast",
     "friction_contrast",
     "oracle_threshold",
+    "oracle_could",
+    "oracle_share",
+    "ORACLE_COULD_SHARE",
     "observation_evidence",
     "filter_evidence",
     "OBSERVATION_DRAWS",
