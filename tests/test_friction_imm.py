@@ -195,7 +195,8 @@ def test_evidence_that_comes_in_small_steps_reads_the_wet_straight_before_the_gr
     (Page's CUSUM of the sides' log-likelihood ratio) reads the lower friction at least LEAD_S = 0.5 s before the
     loss of grip (its margin, EVIDENCE_MARGIN, was set after looking at this ride: the fresh evaluation seeds are
     its test), the reading within two of its standard deviations of the true friction; with the evidence switched
-    off (a bar no ride reaches) it is read less than LEAD_S ahead. On the ride the evidence is never negative, void
+    off (a bar no ride reaches) it is read less than LEAD_S ahead. On the ride the evidence is the larger of the two
+    banks' sums, never negative, under half its bar on the reference road before the patch, the mixing bank's void
     wherever the probability reads the reference road, and zero after ``reset``."""
     from assist.risk.evaluation import LEAD_S, saturation_events, true_utilisation
 
@@ -205,20 +206,23 @@ def test_evidence_that_comes_in_small_steps_reads_the_wet_straight_before_the_gr
     loss = saturation_events(t, true_utilisation(r.states, c["vx_true"], c["mu_true"], case.friction, case.effects))
     drop = case.notes["patch_start_s"]
     imm = FrictionIMM()
-    Y, ev, p_low, reads = output_matrix(c), [], [], []
+    Y, ev, p_low, reads, banks = output_matrix(c), [], [], [], []
     for k in range(len(t)):
         imm.update(Y[k], float(c["tau"][k]), float(c["vx"][k]))
         ev.append(imm.evidence)
+        banks.append((imm.evidence_mixing, imm.evidence_own))
         p_low.append(float(imm.probabilities[imm.low].sum()))
         reads.append(imm.friction_reading)
-    ev, p_low = np.array(ev), np.array(p_low)
+    ev, p_low, banks = np.array(ev), np.array(p_low), np.array(banks)
     lower = np.array([x.informed and x.mu < imm.mu_ref for x in reads])
     k = int(np.flatnonzero(lower)[0])
     assert t[k] >= drop and loss.size and loss[0] - t[k] >= LEAD_S, (t[k], loss[:1])
     assert p_low[t <= t[k]].max() < imm.decide and ev[k] >= imm.evidence_needed  # read by the evidence
     assert "evidence" in reads[k].status
     assert abs(reads[k].mu - c["mu_true"][k]) <= 2.0 * reads[k].std
-    assert ev.min() >= 0.0 and np.all(ev[1.0 - p_low >= imm.decide] == 0.0)
+    assert ev.min() >= 0.0 and ev[t < drop].max() < 0.5 * imm.evidence_needed
+    np.testing.assert_array_equal(ev, banks.max(axis=1))
+    assert np.all(banks[1.0 - p_low >= imm.decide, 0] == 0.0)
     e0 = imm.evidence
     assert e0 > 0.0  # the wet road to the end
     with pytest.raises(FrictionFilterError, match="likelihood"):  # refused: the evidence is left as it was

@@ -190,6 +190,10 @@ BANK_WALK = 0.005
 #: Sensor offsets the filter carries: the yaw-rate gyro's as a state, the lateral accelerometer's as the road bank
 #: it reads the same way (:data:`N_STATES`).
 CARRIED_OFFSETS = ("yaw_rate", "ay")
+#: Rate of leaving a model in the evidence's own bank [1/s] (module docstring, "Evidence"): as good as none, each
+#: friction's filter tracks the sensors on its own, as Page's CUSUM compares hypotheses (a rate of exactly zero would
+#: leave a model whose probability underflowed with no mixing weight at all).
+EVIDENCE_SWITCH_RATE = 1e-6
 #: Time constant of the low-pass of the normalised innovations squared [s] (:attr:`FrictionIMM.nis`).
 NIS_TAU_S = 1.0
 #: Random walk of an offset, in its prior standard deviation per sqrt(s) (a sensor's offset barely moves).
@@ -481,10 +485,8 @@ class FrictionIMM:
         if not p > 0.0:
             raise FrictionFilterError(f"FrictionIMM switch_rate {switch_rate!r} /s is too small to switch in a sample "
                                       f"of {dt!r} s")
-        Pi = p * np.tile(self.pi, (J, 1))
-        Pi[np.diag_indices(J)] = 0.0
-        Pi[np.diag_indices(J)] = 1.0 - Pi.sum(axis=1)
-        self.Pi = Pi
+        self.Pi = self._transitions(p)
+        self.Pi_evidence = self._transitions(-math.expm1(-EVIDENCE_SWITCH_RATE * self.dt))
         self.decide = float(decide)
         self.lower = float(lower)
         self.low = self.grid <= float(lower) * self.mu_ref  # the lower side of the reading
@@ -504,6 +506,14 @@ class FrictionIMM:
         self._known_bank: float | None = None
         self.reset()
 
+    def _transitions(self, p: float) -> np.ndarray:
+        """``Pi_ij = p pi_j`` for ``i != j``, the rest on the diagonal (module docstring, "Switching")."""
+        J = self.pi.size
+        Pi = p * np.tile(self.pi, (J, 1))
+        Pi[np.diag_indices(J)] = 0.0
+        Pi[np.diag_indices(J)] = 1.0 - Pi.sum(axis=1)
+        return Pi
+
     @property
     def estimates_bank(self) -> bool:
         """True while the bank is a state of the filter (no known bank was set)."""
@@ -520,18 +530,20 @@ class FrictionIMM:
         if value is None:  # estimated again, from its prior (a level road, BANK_PRIOR)
             if self._known_bank is not None:
                 self._known_bank = None
-                self._X[:, 8] = 0.0
                 self._bank_hat = 0.0
-                self._P[:, 8, :] = 0.0
-                self._P[:, :, 8] = 0.0
-                self._P[:, 8, 8] = BANK_PRIOR**2
+                for X, P in ((self._X, self._P), (self._Xe, self._Pe)):
+                    X[:, 8] = 0.0
+                    P[:, 8, :] = 0.0
+                    P[:, :, 8] = 0.0
+                    P[:, 8, 8] = BANK_PRIOR**2
             return
         b = check_bank(value, FrictionFilterError)
         self._known_bank = b
         self._bank_hat = b
-        self._X[:, 8] = b
-        self._P[:, 8, :] = 0.0
-        self._P[:, :, 8] = 0.0
+        for X, P in ((self._X, self._P), (self._Xe, self._Pe)):
+            X[:, 8] = b
+            P[:, 8, :] = 0.0
+            P[:, :, 8] = 0.0
 
     @property
     def yaw_rate_offset(self) -> float:
@@ -543,6 +555,10 @@ class FrictionIMM:
         J = self.grid.size
         self._X = np.zeros((J, N_STATES))
         self._P = np.tile(np.diag(self._p0**2), (J, 1, 1))
+        # the evidence's own bank (module docstring, "Evidence"): the same models, switching at EVIDENCE_SWITCH_RATE
+        self._Xe, self._Pe, self._probe = self._X.copy(), self._P.copy(), self.pi.copy()
+        self._lle = np.zeros(J)
+        self._nise = np.zeros(J)
         self._bank_hat, self._offset_hat = 0.0, 0.0
         self._vx: float | None = None
         if self.speed is not None:
@@ -557,9 +573,14 @@ class FrictionIMM:
         #: each model's log-likelihood ``ln Lambda_j`` of the last sample's outputs (order of :attr:`grid`; zeros
         #: before the first update) [nats]
         self.log_likelihoods = np.zeros(J)
-        #: the lower side's evidence against the reference road since it was last void, in nats (the CUSUM of
-        #: the module docstring): read as lower at :attr:`evidence_needed`
+        #: the lower side's evidence against the reference road, in nats: the larger of the two banks' CUSUMs
+        #: (module docstring, "Evidence"), read as lower at :attr:`evidence_needed`
         self.evidence = 0.0
+        #: the CUSUM of the filter's own bank (its models mix at ``switch_rate``) [nats]
+        self.evidence_mixing = 0.0
+        #: the CUSUM of the evidence bank (its models track the sensors on their own, :data:`EVIDENCE_SWITCH_RATE`)
+        #: [nats]
+        self.evidence_own = 0.0
         #: normalised innovation squared per channel, probability-weighted, low-passed over ``NIS_TAU_S`` (1 when
         #: the models explain the sensors)
         self.nis = 1.0
@@ -587,21 +608,27 @@ class FrictionIMM:
             if self._vx is None:
                 raise FrictionFilterError(f"vx is missing ({vx!r}) and no earlier speed is known")
             v = self._vx
-        X, P, prob = self._X.copy(), self._P.copy(), self._prob.copy()  # committed only when both steps succeed
-        c = prob.copy()  # the predicted mode probabilities of this sample
-        if not _imm_update(X, P, prob, yv, self.C, self.rvar, self._ll, self._nis):
+        X, P, prob = self._X.copy(), self._P.copy(), self._prob.copy()  # committed only when every step succeeds
+        Xe, Pe, probe = self._Xe.copy(), self._Pe.copy(), self._probe.copy()
+        c, ce = prob.copy(), probe.copy()  # each bank's predicted mode probabilities of this sample
+        if not (_imm_update(X, P, prob, yv, self.C, self.rvar, self._ll, self._nis)
+                and _imm_update(Xe, Pe, probe, yv, self.C, self.rvar, self._lle, self._nise)):
             raise FrictionFilterError("every model's likelihood vanished: the outputs are far outside the model")
         step = _side_log_ratio(self._ll, c, self.low)
+        step_own = _side_log_ratio(self._lle, ce, self.low)
         post = prob.copy()
         post_X = X.copy()
         q = self._q.copy()
         if self._known_bank is not None:
             q[8] = 0.0
         vc = min(max(v, self.vehicle.vmin), self.vehicle.vmax)
-        if not _imm_predict(X, P, prob, tau, vc, self.W, self.dW, self.cb, self.isg, self.FM, self.dt, self.nsub,
-                            np.diag(q**2), self.fd, self.Pi):
-            raise FrictionFilterError("the friction filter diverged (a state is not finite)")
+        Q = np.diag(q**2)
+        for Xb, Pb, pb, Pi in ((X, P, prob, self.Pi), (Xe, Pe, probe, self.Pi_evidence)):
+            if not _imm_predict(Xb, Pb, pb, tau, vc, self.W, self.dW, self.cb, self.isg, self.FM, self.dt, self.nsub,
+                                Q, self.fd, Pi):
+                raise FrictionFilterError("the friction filter diverged (a state is not finite)")
         self._X, self._P, self._prob, self._vx = X, P, prob, v
+        self._Xe, self._Pe, self._probe = Xe, Pe, probe
         if tracked is not None:
             self.speed.commit(tracked)
         self.probabilities = post
@@ -613,10 +640,13 @@ class FrictionIMM:
         if n_read:  # the model's consistency: NIS per channel read, probability-weighted, low-passed
             a = 1.0 - math.exp(-self.dt / NIS_TAU_S)
             self.nis += a * (float(post @ self._nis) / n_read - self.nis)
-        # the evidence adds up (Page's CUSUM); void where the models do not explain the sensors or the
-        # probability reads the reference road
-        void = self.nis > NIS_EXPLAINED or 1.0 - float(post[self.low].sum()) >= self.decide
-        self.evidence = 0.0 if void else max(0.0, self.evidence + step)
+        # the evidence adds up (Page's CUSUM), in each bank; void where the models do not explain the sensors, the
+        # mixing bank's also where its probability reads the reference road
+        unexplained = self.nis > NIS_EXPLAINED
+        void = unexplained or 1.0 - float(post[self.low].sum()) >= self.decide
+        self.evidence_mixing = 0.0 if void else max(0.0, self.evidence_mixing + step)
+        self.evidence_own = 0.0 if unexplained else max(0.0, self.evidence_own + step_own)
+        self.evidence = max(self.evidence_mixing, self.evidence_own)
 
     @property
     def friction_reading(self) -> FrictionReading:
@@ -654,4 +684,4 @@ class FrictionIMM:
                        f"{low:.3f})")
 
 
-__all__ = ["CARRIED_OFFSETS", "EVIDENCE_MARGIN", "FORCE_NOISE", "NOISE_SCALE", "STATE_NOISE", "SWITCH_RATE", "FrictionFilterError", "FrictionIMM", "FrictionReading", "friction_grid"]
+__all__ = ["CARRIED_OFFSETS", "EVIDENCE_MARGIN", "EVIDENCE_SWITCH_RATE", "FORCE_NOISE", "NOISE_SCALE", "STATE_NOISE", "SWITCH_RATE", "FrictionFilterError", "FrictionIMM", "FrictionReading", "friction_grid"]
