@@ -30,8 +30,8 @@ the README cite.
    held GPS reading and of the tracker at each jerk intensity of :data:`JERKS` against the true speed (RMS and largest
    per ride, from 1 s on; the tracker's default is the one with the smallest mean of the largest errors), and the
    default filter's largest P(lower) when it takes the held reading as the speed (``speed_jerk=None``).
-7. The evidence (``FrictionIMM.evidence``, the CUSUM of the two sides' log-likelihood ratio): its largest value on the
-   calibration rides' reference road and on the real rides, the patches read with it and with the probability
+7. The evidence (``FrictionIMM.evidence``, the CUSUM of the two sides' log-likelihood ratio, the larger of the filter's
+   two banks' sums): its largest value on the calibration rides' reference road and on the real rides (and each bank's), the patches read with it and with the probability
    alone (tables 1a and 1b count the probability alone), and the two wet straights of the risk evaluation
    (:data:`EVALUATION_STRAIGHTS`) that the version before it warned 0.1 s ahead.
 
@@ -69,16 +69,16 @@ EVALUATION_STRAIGHTS = (1008, 1027)
 
 
 def _run(imm, log):
-    """Probabilities (K, J), nis (K,), evidence [nats] (K,) and where the filter's reading is a lower friction (K,)
-    over a log."""
+    """Probabilities (K, J), nis (K,), evidence [nats] (K, 3: the filter's, its mixing bank's, its own bank's) and
+    where the filter's reading is a lower friction (K,) over a log."""
     from assist.risk.pipeline import output_matrix
 
     Y, tau, vx = output_matrix(log.columns), np.asarray(log.columns["tau"], float), np.asarray(log.columns["vx"], float)
-    P, N, E = np.zeros((len(Y), imm.grid.size)), np.zeros(len(Y)), np.zeros(len(Y))
+    P, N, E = np.zeros((len(Y), imm.grid.size)), np.zeros(len(Y)), np.zeros((len(Y), 3))
     R = np.zeros(len(Y), dtype=bool)
     for k in range(len(Y)):
         imm.update(Y[k], tau[k], vx[k])
-        P[k], N[k], E[k] = imm.probabilities, imm.nis, imm.evidence
+        P[k], N[k], E[k] = imm.probabilities, imm.nis, (imm.evidence, imm.evidence_mixing, imm.evidence_own)
         r = imm.friction_reading
         R[k] = r.informed and r.mu < imm.mu_ref
     return P, N, E, R
@@ -134,11 +134,14 @@ def _calibration_ride(kind: str, seed: int) -> dict | None:
 
 
 def _evidence(imm, t, P, E, R, ref, drop, loss) -> dict:
-    """Table 7 figures of one ride: the largest evidence [nats] on its reference road, and (wet) the first
+    """Table 7 figures of one ride: the largest evidence [nats] on its reference road (the filter's, and each
+    bank's), and (wet) the first
     lower reading after the drop with the evidence and with the probability alone [s after the drop], the largest
     evidence and P(lower) up to 0.5 s before the first loss of grip."""
     low = P[:, imm.low].sum(axis=1)
-    out = {"ref_max": float(E[ref].max()) if ref.any() else None}
+    out = {key: float(E[ref, i].max()) if ref.any() else None
+           for i, key in enumerate(("ref_max", "ref_max_mixing", "ref_max_own"))}
+    E = E[:, 0]
     if drop is not None:
         for key, on in (("read_after_s", R), ("read_after_s_probability", low >= imm.decide)):
             k = np.flatnonzero((t >= drop) & on)
@@ -232,7 +235,8 @@ def _real_ride(path: str) -> dict:
     m = t >= 1.0
     held = (low >= imm.decide) & (N > NIS_EXPLAINED) & m
     return {"ride": Path(path).stem, "nis_median": float(np.median(N[m])), "p_lower_max": float(low[m].max()),
-            "evidence_max": float(E[m].max()), "read_lower_samples": int((R & m).sum()),
+            "evidence_max": float(E[m, 0].max()), "evidence_max_mixing": float(E[m, 1].max()),
+            "evidence_max_own": float(E[m, 2].max()), "read_lower_samples": int((R & m).sum()),
             "held_back_samples": int(held.sum()), "nis_where_held": [float(np.min(N[held])), float(np.max(N[held]))]
             if held.any() else None}
 
@@ -365,10 +369,14 @@ def _evidence_table(res: dict, cal: list[dict]) -> list[str]:
 
     h = FrictionIMM().evidence_needed
     ref = sorted((r["evidence"]["ref_max"], r["kind"], r["seed"]) for r in cal if r["evidence"]["ref_max"] is not None)
-    lines = [f"## 7. Evidence (CUSUM of the sides' log-likelihood ratio), read as lower at {h:.1f} nats", "",
+    lines = [f"## 7. Evidence (CUSUM of the sides' log-likelihood ratio, the larger of the filter's two banks'), read "
+             f"as lower at {h:.1f} nats", "",
              f"Reference road of the calibration rides ({len(ref)} stretches): largest {ref[-1][0]:.2f} nats "
              f"({ref[-1][1]} {ref[-1][2]}; {ref[-1][0] / h:.2f} of the bar), "
-             f"{sum(1 for x in ref if x[0] >= h)} at the bar.", ""]
+             f"{sum(1 for x in ref if x[0] >= h)} at the bar; the mixing bank's sum at most "
+             f"{max(r['evidence']['ref_max_mixing'] for r in cal if r['evidence']['ref_max'] is not None):.2f}, "
+             f"the own bank's {max(r['evidence']['ref_max_own'] for r in cal if r['evidence']['ref_max'] is not None):.2f}.",
+             ""]
     for kind in ("wet_corner", "wet_straight"):
         rs = [r for r in cal if r["kind"] == kind]
         both = [r["evidence"]["read_after_s"] for r in rs]
@@ -387,7 +395,9 @@ def _evidence_table(res: dict, cal: list[dict]) -> list[str]:
                          f"{n_early('read_after_s_probability')} of {len(early)} rides with a loss, with the evidence "
                          f"{n_early('read_after_s')}.")
     lines += ["", "Real robot-bicycle rides (from 1 s on): largest evidence "
-              + ", ".join(f"{r['ride'][3:]} {r['evidence_max']:.2f}" for r in res["real"])
+              + ", ".join(f"{r['ride'][3:]} {r['evidence_max']:.2f} ({r['evidence_max_mixing']:.2f} / "
+                          f"{r['evidence_max_own']:.2f})" for r in res["real"])
+              + " (the mixing bank's / the own bank's)"
               + f"; samples read as lower: "
               f"{sum(r['read_lower_samples'] for r in res['real'])}.", "",
               "Wet straights of the risk evaluation that the previous version warned 0.1 s ahead:", "",
