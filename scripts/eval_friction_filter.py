@@ -31,8 +31,9 @@ the README cite.
    per ride, from 1 s on; the tracker's default is the one with the smallest mean of the largest errors), and the
    default filter's largest P(lower) when it takes the held reading as the speed (``speed_jerk=None``).
 7. The evidence (``FrictionIMM.evidence``, the CUSUM of the two sides' log-likelihood ratio, the larger of the filter's
-   two banks' sums): its largest value on the calibration rides' reference road and on the real rides (and each bank's), the patches read with it and with the probability
-   alone (tables 1a and 1b count the probability alone), and the two wet straights of the risk evaluation
+   two banks' sums): its largest value on the calibration rides' reference road and on the real rides (and each
+   bank's), the patches read with it and with the probability alone (tables 1a and 1b count the probability alone),
+   and the two wet straights of the risk evaluation
    (:data:`EVALUATION_STRAIGHTS`) that the version before it warned 0.1 s ahead.
 
 Every ride is seeded; the same seeds give the same numbers. Example::
