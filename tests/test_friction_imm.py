@@ -235,6 +235,35 @@ def test_evidence_that_comes_in_small_steps_reads_the_wet_straight_before_the_gr
     assert read and loss[0] - t[read[0]] < LEAD_S
 
 
+def test_a_corner_patch_the_mixing_hands_back_is_read_by_the_bank_whose_models_track_on_their_own():
+    """Truth: corner patch 3022 of the risk evaluation's fresh seeds (0.9 -> 0.45 at 30.01 s as a corner of 0.31 g
+    ends; the tires use 0.35 of their load sideways at the drop, and unload within half a second). In the filter's
+    own bank the mixing (0.3 /s) starts each unlikely model from the likely ones' states every sample, and its sum
+    stays under the bar through the 0.3 s after the drop (13.1 nats); the evidence bank, whose models switch as good
+    as never, tracks each friction on its own, and its sum crosses the bar within LATENCY_S: the filter reads a
+    lower friction there, within two standard deviations of the true one, and the evidence is the larger sum."""
+    from assist.risk.evaluation import LATENCY_S
+
+    case, r = _ride("wet_corner", 3022)
+    t = np.asarray(r.log.t)
+    c = r.log.columns
+    drop = float(t[np.flatnonzero(np.asarray(c["mu_true"]) < c["mu_true"][0])[0]])
+    imm = FrictionIMM()
+    Y, banks, reads = output_matrix(c), [], []
+    for k in range(int(np.searchsorted(t, drop + LATENCY_S, side="right"))):
+        imm.update(Y[k], float(c["tau"][k]), float(c["vx"][k]))
+        banks.append((imm.evidence, imm.evidence_mixing, imm.evidence_own))
+        reads.append(imm.friction_reading)
+    banks = np.array(banks)
+    win = t[: len(banks)] >= drop
+    assert banks[win, 1].max() < imm.evidence_needed <= banks[win, 2].max()
+    np.testing.assert_array_equal(banks[:, 0], banks[:, 1:].max(axis=1))
+    lower = [j for j, x in enumerate(reads) if x.informed and x.mu < imm.mu_ref]
+    assert lower and t[lower[0]] >= drop, "read before the drop"
+    j = lower[0]
+    assert abs(reads[j].mu - c["mu_true"][j]) <= 2.0 * reads[j].std and "evidence" in reads[j].status
+
+
 def test_grid_and_bad_options():
     g = friction_grid()
     assert g[0] == 0.9 and np.all(np.diff(g) < 0) and g[-1] >= 0.05
@@ -279,8 +308,8 @@ def test_real_rides_give_no_lower_reading_and_the_unexplained_one_is_held_back()
     """The 14 measured robot-bicycle rides (their vehicle file, 5 % assumed noise): no lower friction is read on
     any. On run 04-009 (7-8 Hz steer-torque oscillation, brief saturation: the model does not explain it) the
     lower frictions do take the decision probability, while the normalised innovations are far above
-    NIS_EXPLAINED: the consistency gate is what holds the reading back there; on the other rides the models
-    explain the sensors."""
+    NIS_EXPLAINED: the consistency gate is what holds the reading back there, and both banks' evidence is void
+    (zero) wherever it does; on the other rides the models explain the sensors."""
     from assist.estimation.identification import NIS_EXPLAINED
     from ptw_env.logs import read_log, usable_part
     from ptw_env.vehicle_files import vehicle_of_log
@@ -297,6 +326,8 @@ def test_real_rides_give_no_lower_reading_and_the_unexplained_one_is_held_back()
             lower_read |= r.informed and r.mu < imm.mu_ref
             held |= bool(imm.probabilities[imm.low].sum() >= imm.decide and imm.nis > NIS_EXPLAINED)
             nis.append(imm.nis)
+            if imm.nis > NIS_EXPLAINED:
+                assert imm.evidence == imm.evidence_mixing == imm.evidence_own == 0.0, (path.name, k)
         assert not lower_read, path.name
         if path.stem == "rb_20130704_009":
             assert held

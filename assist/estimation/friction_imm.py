@@ -64,34 +64,52 @@ against the true friction at its instant).
 Evidence: the switching that lets the probabilities follow a road that changes also hands back ``p pi_ref``
 of the lower side per sample, so evidence that comes in small steps never brings them to ``decide``: on wet
 straights 1008 and 1027 of the risk evaluation, where light corners on the wet patch told the road 16-19 s before
-the loss of grip (the window oracle of the risk evaluation), P(lower) stopped at 0.9965 and 0.9977 and the warning came 0.1 s ahead. The filter
-therefore also adds the evidence up, as Page's cumulative sum (CUSUM; E. S. Page, "Continuous inspection
-schemes", Biometrika 41, 1954; Basseville and Nikiforov, *Detection of Abrupt Changes*, 1993, sec. 2.2.2):
-``g_k = max(0, g_{k-1} + l_k)``, ``l_k = ln(sum_{j low} c_j Lambda_j / sum_{j low} c_j) - ln(sum_{j ref} c_j
-Lambda_j / sum_{j ref} c_j)``, the log-ratio of the two sides' likelihoods of the sample (each side its models'
-likelihoods weighted by their predicted probabilities ``c_j``; :attr:`FrictionIMM.evidence`, nats). ``g`` is
-void (0) while the probability reads the reference road or the models do not explain the sensors (``nis``,
-below). The road is read as *lower* where ``g >= h`` too, ``h`` = :data:`EVIDENCE_MARGIN` (2) times the
-evidence the probability needs from the stationary prior, ``ln(decide / (1 - decide)) + ln(pi_ref_side /
-pi_lower_side)``, the two sides' stationary masses (0.92 and 0.08: the level 0.72 is on the reference's side),
-9.35 nats with the defaults, so ``h`` = 18.7: unlike the probability, the sum does not forget, so it also adds
-up the model error, and is given twice the bar. On the calibration rides' 199 reference-road stretches ``g``
-reached at most 7.3 nats (0.39 ``h``), on the 13 real rides not held back 9.7 (run 13-014; 13-019 9.5); on the
-evaluation's wet straights 1008 and 1027 it reached 33 and 168 before the loss of grip
-(``scripts/eval_friction_filter.py`` table 7, stored; the margin 2 was chosen after looking at those figures, so
-the fresh seeds 4000-4039, declared before the evidence's first evaluation run, are its test; that run had the
-bar at 18.2, from the reference model's prior 0.9 instead of its side's 0.92, corrected after it: a higher bar,
-which reads less, not more). What the margin costs, against a reader of the same sensors that knows the wet
-road (the risk evaluation's observation oracle, ``assist.risk.evaluation.observation_evidence``: this filter with
-the dry and the wet friction only, its CUSUM's threshold set in the simulation at 2 % of dry rides, 7.1-7.7
-nats): on the three wet straights of 160 evaluation seeds where it could warn and this filter did not, this
-filter's evidence came within 2 nats of the oracle's on the same noise (12.3 / 14.3, 8.6 / 9.8, 5.6 / 6.7): on
-those three rides it is the bar, more than the gathering, that leaves them unread. The oracle's threshold holds
-where the model is exact; on the 14 measured robot-bicycle rides (dry floors) its own sum reaches 14.3 nats
-(run 13-019), and held to them (14.31 nats) it could warn none of those three (3-9 of 25 draws each), and over
-the 160 seeds it could warn one loss this filter did not, corner patch 3022 (17 of 25 draws; this filter's
-evidence 13.5 nats): README, "Risk warning". This filter's own sum reached 6.2-9.5 nats (the largest per run and
-dry ride type) on the simulated dry rides of those seeds.
+the loss of grip (the window oracle of the risk evaluation), P(lower) stopped at 0.9965 and 0.9977 and the warning
+came 0.1 s ahead. The filter therefore also adds the evidence up, as Page's cumulative sum (CUSUM; E. S. Page,
+"Continuous inspection schemes", Biometrika 41, 1954; Basseville and Nikiforov, *Detection of Abrupt Changes*,
+1993, sec. 2.2.2): ``g_k = max(0, g_{k-1} + l_k)``, ``l_k = ln(sum_{j low} c_j Lambda_j / sum_{j low} c_j) -
+ln(sum_{j ref} c_j Lambda_j / sum_{j ref} c_j)``, the log-ratio of the two sides' likelihoods of the sample (each
+side its models' likelihoods weighted by their predicted probabilities ``c_j``), in two banks of the same models:
+
+- the filter's own (:attr:`FrictionIMM.evidence_mixing`), whose mixing starts each unlikely model from the likely
+  ones' states every sample, so that each likelihood compares one step from a blend of states; its ``g`` is void
+  (0) while its probability reads the reference road;
+- an evidence bank (:attr:`FrictionIMM.evidence_own`), the same models switching at :data:`EVIDENCE_SWITCH_RATE`
+  (1e-6 /s, as good as never): each friction tracks the sensors on its own, as Page's test compares hypotheses,
+  until its probability falls to the switching's floor (about 1e-8 of the likely ones' a sample), where the mixing
+  restarts it from their states (the observation oracle of the risk evaluation is this bank with the dry and the
+  wet friction only). Its probability is not read; the CUSUM's ``max(0, .)`` restarts its sum on the reference
+  road.
+
+Both are void where the models do not explain the sensors (``nis``, below). The evidence,
+:attr:`FrictionIMM.evidence` (nats), is the larger of the two sums: where a drop comes under a loaded tire the
+own bank gathers more (corner patch 3022 of the risk evaluation's fresh seeds: 13.1 nats within 0.3 s of the drop
+in the filter's bank, 28.7 in the evidence bank), on a road between two levels the mixing explains it better
+(too-fast seed 1, a damp road of 0.59: 26.5 and 10.6 before the critical curve).
+
+The road is read as *lower* where ``g >= h`` too, ``h`` = :data:`EVIDENCE_MARGIN` (2) times the evidence the
+probability needs from the stationary prior, ``ln(decide / (1 - decide)) + ln(pi_ref_side / pi_lower_side)``, the
+two sides' stationary masses (0.92 and 0.08: the level 0.72 is on the reference's side), 9.35 nats with the
+defaults, so ``h`` = 18.7: unlike the probability, the sum does not forget, so it also adds up the model error, and
+is given twice the bar. On the calibration rides' 199 reference-road stretches ``g`` reached at most 7.34 nats (0.39
+``h``; the filter's own bank 7.31, the evidence bank 7.34); on the 13 real rides not held back 9.70 (run 13-014, the
+filter's own bank; the evidence bank 7.88 there and at most 9.67, on 13-019); on the evaluation's wet straights 1008
+and 1027 it reached 33 and 168 before the loss of grip (``scripts/eval_friction_filter.py`` table 7, stored; the
+margin 2 was chosen after looking at those figures, so the fresh seeds 4000-4039, declared before the evidence's
+first evaluation run, are its test; that run had the bar at 18.2, from the reference model's prior 0.9 instead of
+its side's 0.92, corrected after it: a higher bar, which reads less, not more). The evidence bank was added after
+looking at corner patch 3022 (seeds 3000-3039, where the held observation oracle could warn and the filter did not);
+the fresh seeds 5000-5039, declared before its first evaluation run, are its test. What the margin costs, against a
+reader of the same sensors that knows the wet road (the risk evaluation's observation oracle,
+``assist.risk.evaluation.observation_evidence``: this filter with the dry and the wet friction only, switching as
+good as never as the evidence bank does, its CUSUM's threshold set in the simulation at 2 % of dry rides, 7.1-8.4
+nats): on the four wet straights of 200 evaluation seeds where it could warn and this filter did not (1006, 4003,
+2006, 5022) this filter's evidence reached 5.8-15.3 nats. The oracle's threshold holds where the model is exact; on
+the 14 measured robot-bicycle rides (dry floors) its own sum reaches 14.3 nats (run 13-019), and held to them (14.31
+nats) it could warn none of those four (3-9 of 25 draws each) and no loss of grip this filter did not warn (README,
+"Risk warning"). This filter's own sum reached 6.3-15.6 nats (the largest per run and dry ride type) on the
+simulated dry rides of those seeds, 13.1-15.6 on one route (seed 5000: a 0.42 g corner under braking as the ride
+ends; the filter's own bank 9.0-12.1 there).
 
 Consistency: the comparison of the models means something only where one of them explains the sensors. The
 filter low-passes (``NIS_TAU_S`` = 1 s) the probability-weighted normalised innovation squared per channel read,
@@ -138,9 +156,9 @@ beta)``), an offset only the reading, so loaded corners tell them apart. A later
 has no state: on straights and in corners it adds to ``a_y`` as ``g sin(beta)`` does, so it reads as a bank of
 about ``o / g`` (0.1 m/s^2 as 0.010 rad).
 
-Cost: six extended Kalman filters of 10 states per sample, the speed tracker and the evidence, 134 us per
-:meth:`FrictionIMM.update` against 11.0 us for one environment step in the same run (12.2x) (``scripts/bench_adaptive.py``,
-README's benchmark table).
+Cost: two banks of six extended Kalman filters of 10 states per sample, the speed tracker and the evidence, 273 us
+per :meth:`FrictionIMM.update` against 12.1 us for one environment step in the same run (22.6x; one bank: 12.2x)
+(``scripts/bench_adaptive.py``, README's benchmark table).
 
 Units: states as model.md (rad, rad/s, m/s, N), ``mu`` dimensionless, times in s.
 """
@@ -219,8 +237,8 @@ class FrictionReading:
     status : str
         Why, in words.
     evidence : float or None
-        The lower side's evidence against the reference road, Page's CUSUM ``g`` [nats]
-        (:attr:`FrictionIMM.evidence`; module docstring, "Evidence"); None: not given.
+        The lower side's evidence against the reference road, the larger of the filter's two banks' Page's CUSUMs
+        ``g`` [nats] (:attr:`FrictionIMM.evidence`; module docstring, "Evidence"); None: not given.
     """
 
     mu: float

@@ -65,6 +65,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+from assist.estimation.friction_imm import EVIDENCE_SWITCH_RATE
 from ptw_env.effects import as_effects
 from ptw_env.friction import MU_RANGE, REFERENCE_FRICTION, SCALINGS, FrictionPlants, FrictionSchedule
 from ptw_env.sensors import SensorConfig
@@ -112,8 +113,9 @@ ORACLE_COULD_SHARE = 0.5
 #: same case with other sensor and rider noise (each a ride and a two-model filter pass).
 OBSERVATION_DRAWS = 5
 #: Rate of switching between the observation oracle's two models [1/s] (:func:`observation_evidence`): as good as
-#: none (1e-8 of a model's probability a sample at 0.01 s), which the filter needs to be positive.
-OBSERVATION_SWITCH_RATE = 1e-6
+#: none (1e-8 of a model's probability a sample at 0.01 s), which the filter needs to be positive; the friction
+#: filter's evidence bank switches at the same rate.
+OBSERVATION_SWITCH_RATE = EVIDENCE_SWITCH_RATE
 
 
 @dataclass(frozen=True)
@@ -422,7 +424,8 @@ def observation_evidence(log: Any, mu_alt: float = WET_FRICTION, noise_pct: floa
     knows the two roads to tell apart, the reference road ``mu_ref`` and the wet road ``mu_alt``, but not the
     state. It is the friction filter (:class:`assist.estimation.friction_imm.FrictionIMM`: the saturating plant,
     its noise model for ``noise_pct`` % sensors, the speed tracker, the bank and yaw-gyro offset states) with those
-    two models only, switching at :data:`OBSERVATION_SWITCH_RATE` (as good as none), and Page's CUSUM
+    two models only, switching at :data:`OBSERVATION_SWITCH_RATE` (as good as none, as the filter's evidence bank
+    does), and Page's CUSUM
     (:func:`page_cusum`) of its models' log-likelihood ratio ``ln Lambda_alt - ln Lambda_ref`` per sample (the
     likelihood of the sample's outputs given the past ones, from each model's extended Kalman filter; Blom and
     Bar-Shalom 1988, eq. 11). For two known hypotheses that is the CUSUM of :func:`sequential_evidence` on all
