@@ -85,7 +85,8 @@ Both are void where the models do not explain the sensors (``nis``, below). The 
 :attr:`FrictionIMM.evidence` (nats), is the larger of the two sums: where a drop comes under a loaded tire the
 own bank gathers more (corner patch 3022 of the risk evaluation's fresh seeds: 13.1 nats within 0.3 s of the drop
 in the filter's bank, 28.7 in the evidence bank), on a road between two levels the mixing explains it better
-(too-fast seed 1, a damp road of 0.59: 26.5 and 10.6 before the critical curve).
+(too-fast seed 1, a damp road of 0.59: 26.5 and 10.6 before the critical curve; both rides looked at afterwards,
+the banks' sums not stored; 3022's tested).
 
 The road is read as *lower* where ``g >= h`` too, ``h`` = :data:`EVIDENCE_MARGIN` (2) times the evidence the
 probability needs from the stationary prior, ``ln(decide / (1 - decide)) + ln(pi_ref_side / pi_lower_side)``, the
@@ -109,7 +110,7 @@ the 14 measured robot-bicycle rides (dry floors) its own sum reaches 14.3 nats (
 nats) it could warn none of those four (3-9 of 25 draws each) and no loss of grip this filter did not warn (README,
 "Risk warning"). This filter's own sum reached 6.3-15.6 nats (the largest per run and dry ride type) on the
 simulated dry rides of those seeds, 13.1-15.6 on one route (seed 5000: a 0.42 g corner under braking as the ride
-ends; the filter's own bank 9.0-12.1 there).
+ends; the filter's own bank 9.0-12.1 there, looked at afterwards, not stored).
 
 Consistency: the comparison of the models means something only where one of them explains the sensors. The
 filter low-passes (``NIS_TAU_S`` = 1 s) the probability-weighted normalised innovation squared per channel read,
