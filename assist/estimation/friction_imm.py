@@ -506,6 +506,8 @@ class FrictionIMM:
                                       f"of {dt!r} s")
         self.Pi = self._transitions(p)
         self.Pi_evidence = self._transitions(-math.expm1(-EVIDENCE_SWITCH_RATE * self.dt))
+        #: the filter's own bank is the evidence bank (it switches at EVIDENCE_SWITCH_RATE): one bank is run
+        self._one_bank = bool(np.array_equal(self.Pi, self.Pi_evidence))
         self.decide = float(decide)
         self.lower = float(lower)
         self.low = self.grid <= float(lower) * self.mu_ref  # the lower side of the reading
@@ -631,10 +633,10 @@ class FrictionIMM:
         Xe, Pe, probe = self._Xe.copy(), self._Pe.copy(), self._probe.copy()
         c, ce = prob.copy(), probe.copy()  # each bank's predicted mode probabilities of this sample
         if not (_imm_update(X, P, prob, yv, self.C, self.rvar, self._ll, self._nis)
-                and _imm_update(Xe, Pe, probe, yv, self.C, self.rvar, self._lle, self._nise)):
+                and (self._one_bank or _imm_update(Xe, Pe, probe, yv, self.C, self.rvar, self._lle, self._nise))):
             raise FrictionFilterError("every model's likelihood vanished: the outputs are far outside the model")
         step = _side_log_ratio(self._ll, c, self.low)
-        step_own = _side_log_ratio(self._lle, ce, self.low)
+        step_own = step if self._one_bank else _side_log_ratio(self._lle, ce, self.low)
         post = prob.copy()
         post_X = X.copy()
         q = self._q.copy()
@@ -642,7 +644,8 @@ class FrictionIMM:
             q[8] = 0.0
         vc = min(max(v, self.vehicle.vmin), self.vehicle.vmax)
         Q = np.diag(q**2)
-        for Xb, Pb, pb, Pi in ((X, P, prob, self.Pi), (Xe, Pe, probe, self.Pi_evidence)):
+        banks = ((X, P, prob, self.Pi),) + (() if self._one_bank else ((Xe, Pe, probe, self.Pi_evidence),))
+        for Xb, Pb, pb, Pi in banks:
             if not _imm_predict(Xb, Pb, pb, tau, vc, self.W, self.dW, self.cb, self.isg, self.FM, self.dt, self.nsub,
                                 Q, self.fd, Pi):
                 raise FrictionFilterError("the friction filter diverged (a state is not finite)")

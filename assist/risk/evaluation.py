@@ -383,17 +383,13 @@ def sequential_evidence(contrast_alt: np.ndarray, contrast_true: np.ndarray, ay_
     return page_cusum(((c[:, None] + ay_std * n) * s[:, None] - 0.5 * s[:, None] ** 2) / var)
 
 
-def page_cusum(increments: ArrayLike, void: ArrayLike | None = None) -> np.ndarray:
+def page_cusum(increments: ArrayLike) -> np.ndarray:
     """Page's CUSUM ``g_k = max(0, g_{k-1} + l_k)``, ``g_{-1} = 0``, of log-likelihood-ratio increments ``l_k``
     along the first axis (one path per column) [nats] (E. S. Page, Biometrika 41, 1954; Basseville and Nikiforov,
     *Detection of Abrupt Changes*, 1993, eq. 2.2.10), the recursion itself (the unrolled form ``S_k - min S_j``
-    loses the digits of a small sum after a large negative one). ``void`` (K,) booleans: ``g_k = 0`` where true
-    (nothing is read there; the sum starts again after it), as the friction filter's evidence
-    (:class:`assist.estimation.friction_imm.FrictionIMM`).
+    loses the digits of a small sum after a large negative one).
 
     >>> page_cusum([1.0, -3.0, 2.0, 0.5]).tolist()
-    [1.0, 0.0, 2.0, 2.5]
-    >>> page_cusum([1.0, 2.0, 2.0, 0.5], void=[False, True, False, False]).tolist()
     [1.0, 0.0, 2.0, 2.5]
     """
     try:
@@ -402,16 +398,11 @@ def page_cusum(increments: ArrayLike, void: ArrayLike | None = None) -> np.ndarr
         raise ValueError(f"the CUSUM's increments must be real numbers, got {increments!r}"[:200]) from None
     if x.ndim == 0 or x.shape[0] == 0 or not np.all(np.isfinite(x)):
         raise ValueError("the CUSUM's increments must be a finite, non-empty array")
-    v = np.zeros(x.shape[0], dtype=bool)
-    if void is not None:
-        v = np.asarray(void)
-        if v.dtype != bool or v.shape != x.shape[:1]:
-            raise ValueError(f"void must be {x.shape[0]} booleans, one per increment, got {void!r}"[:200])
     g = np.empty_like(x)
     last = np.zeros(x.shape[1:])
     with np.errstate(over="ignore", invalid="ignore"):
         for k in range(x.shape[0]):
-            last = np.zeros_like(last) if v[k] else np.maximum(0.0, last + x[k])
+            last = np.maximum(0.0, last + x[k])
             g[k] = last
     if not np.all(np.isfinite(g)):
         raise ValueError("the CUSUM's sum overflows: increments too large")
@@ -424,9 +415,9 @@ def observation_evidence(log: Any, mu_alt: float = WET_FRICTION, noise_pct: floa
     knows the two roads to tell apart, the reference road ``mu_ref`` and the wet road ``mu_alt``, but not the
     state. It is the friction filter (:class:`assist.estimation.friction_imm.FrictionIMM`: the saturating plant,
     its noise model for ``noise_pct`` % sensors, the speed tracker, the bank and yaw-gyro offset states) with those
-    two models only, switching at :data:`OBSERVATION_SWITCH_RATE` (as good as none, as the filter's evidence bank
-    does), and Page's CUSUM
-    (:func:`page_cusum`) of its models' log-likelihood ratio ``ln Lambda_alt - ln Lambda_ref`` per sample (the
+    two models only, switching at :data:`OBSERVATION_SWITCH_RATE` (as good as none: its own bank is then its evidence
+    bank), and that evidence (:attr:`FrictionIMM.evidence_own`), Page's CUSUM of its models' log-likelihood ratio
+    ``ln Lambda_alt - ln Lambda_ref`` per sample (the
     likelihood of the sample's outputs given the past ones, from each model's extended Kalman filter; Blom and
     Bar-Shalom 1988, eq. 11). For two known hypotheses that is the CUSUM of :func:`sequential_evidence` on all
     channels, with the state estimated instead of known, approximately: the filter linearises, and its mixing
@@ -441,7 +432,6 @@ def observation_evidence(log: Any, mu_alt: float = WET_FRICTION, noise_pct: floa
     it). ``log``: a ride log (logs.md) with its ``tau`` and ``vx`` columns, read at its own sample time ``dt``;
     ``vehicle``: the filter's vehicle (default the reference scooter)."""
     from assist.estimation.friction_imm import FrictionIMM
-    from assist.estimation.identification import NIS_EXPLAINED
 
     from .pipeline import output_matrix
 
@@ -462,13 +452,11 @@ def observation_evidence(log: Any, mu_alt: float = WET_FRICTION, noise_pct: floa
                          f"vx {vx.shape}")
     imm = FrictionIMM(noise_pct=noise_pct, dt=dt, vehicle=vehicle, mu_ref=mu[0], grid=mu, lower=0.5 * (1.0 + mu[1] / mu[0]),
                       switch_rate=OBSERVATION_SWITCH_RATE)
-    inc = np.empty(len(Y))
-    void = np.empty(len(Y), dtype=bool)
+    g = np.empty(len(Y))
     for k in range(len(Y)):
         imm.update(Y[k], tau[k], vx[k])
-        inc[k] = imm.log_likelihoods[1] - imm.log_likelihoods[0]
-        void[k] = imm.nis > NIS_EXPLAINED
-    return page_cusum(inc, void)
+        g[k] = imm.evidence_own  # its CUSUM of ln Lambda_alt - ln Lambda_ref, void where nis > NIS_EXPLAINED
+    return g
 
 
 def filter_evidence(run: Any) -> np.ndarray | None:
