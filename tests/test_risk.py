@@ -14,10 +14,13 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from assist.risk import (FrictionConfig, FrictionEstimate, PathAhead, RiskConfig, RiskMonitor, RiskPipeline,
                          RiskWarningWrapper, assess_log, safe_curve_speed, safe_lean_angle, stiffness_to_friction)
 from assist.risk.evaluation import saturation_events, true_utilisation
+from assist.risk.monitor import WindowMax
 from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0
 from ptw_env.vehicle import REFERENCE_SCOOTER
 from assist.risk.offline import replay
@@ -203,6 +206,38 @@ def test_levels_and_reasons_follow_the_risk_index():
     a = mon.update(0.02, 0.5 * C0, 0.02 * C0, vx=16.0, ay=2.0, forces=(0.1 * fz[0], 0.1 * fz[1]), path=fast)
     assert a.level == "danger" and "next curve (R 40 m" in a.reason and "safe speed" in a.reason
     assert a.safe_speed_next_curve == pytest.approx(safe_curve_speed(0.45, 1 / 40, RiskConfig().margin), rel=1e-3)
+
+
+def test_a_read_drop_of_the_grip_is_a_caution_whatever_the_tires_use():
+    """The rider rides gently (0.1 g, light tire forces) on a road read at 0.9; the grip read then drops. Below
+    the margin's share of the grip ridden on (0.7 x 0.9 = 0.63) it is a caution at once, in its own words, though
+    neither the utilisation nor the rider's usual cornering reach a threshold; a drop to 0.7 is not. After
+    style_window_s on the lower road the earlier grip is forgotten and the caution lifts."""
+    cfg = RiskConfig()
+    for mu_new, level in ((0.45, "caution"), (0.7, "safe")):
+        mon = RiskMonitor(friction=_stiff())
+        fz = mon.fz
+        for k in range(300):  # 3 s on the dry road
+            a = mon.update(0.01 * k, C0, 0.02 * C0, vx=15.0, ay=0.1 * G, forces=(0.1 * fz[0], 0.1 * fz[1]))
+        assert a.level == "safe" and a.grip_before == pytest.approx(0.9)
+        b = mon.update(3.0, mu_new / 0.9 * C0, 0.02 * C0, vx=15.0, ay=0.1 * G, forces=(0.1 * fz[0], 0.1 * fz[1]))
+        assert b.level == level and b.risk_index < cfg.caution_enter and b.utilisation_usual < cfg.margin
+        assert b.grip_drop_index == pytest.approx(cfg.margin * 0.9 / b.mu_hat)
+        assert ("the grip dropped" in b.reason and "down from 0.90" in b.reason) == (level == "caution")
+    for k in range(1, round(cfg.style_window_s / 0.01) + 2):
+        b = mon.update(3.0 + 0.01 * k, 0.45 / 0.9 * C0, 0.02 * C0, vx=15.0, ay=0.1 * G, forces=None)
+    assert b.level == "safe" and b.grip_before == pytest.approx(b.mu_hat) and b.grip_drop_index < 1.0
+
+
+@given(st.lists(st.tuples(st.floats(0.0, 2.0), st.floats(-10.0, 10.0)), min_size=1, max_size=60),
+       st.floats(0.0, 3.0))
+def test_window_max_is_the_largest_value_of_its_window(steps, window):
+    """WindowMax against the brute force over all pushes of ``[t - window, t]``."""
+    w, t, seen = WindowMax(window), 0.0, []
+    for dt, v in steps:
+        t += dt
+        seen.append((t, v))
+        assert w.push(t, v) == max(x for s_, x in seen if s_ >= t - window)
 
 
 def test_a_warning_held_down_one_level_says_why_in_its_own_words():

@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from assist.risk import FrictionConfig, FrictionEstimate, RiskMonitor
-from assist.risk.evaluation import (LATENCY_S, LEAD_S, OBSERVATION_DRAWS, ORACLE_DRAWS, dry_contrast,
+from assist.risk import FrictionConfig, FrictionEstimate, RiskConfig, RiskMonitor
+from assist.risk.evaluation import (LATENCY_LOAD, LATENCY_S, LEAD_S, OBSERVATION_DRAWS, ORACLE_DRAWS, dry_contrast,
                                     information_onset, make_case, observation_evidence, oracle_threshold, page_cusum,
                                     ride_case, run_case, sequential_evidence, window_max)
 from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0, peak_friction, utilisation_of_secant
@@ -192,6 +192,25 @@ def test_wet_patch_in_a_corner_that_does_not_slide_is_cautioned(pipeline):
     lat = res.summary()["latency"]
     assert lat["caution_after_s"] is not None and lat["caution_after_s"] <= LATENCY_S
     assert res.run.t[_first_lower_reading(res)] >= res.reference_time()
+
+
+def test_wet_patch_read_under_a_gentle_corner_is_cautioned_on_the_drop_itself(pipeline):
+    """Truth: patch 5030 of the fresh seeds begins under a 0.26 g corner (the tires carry 0.26 of their load
+    sideways at the drop, so the latency target applies) and the tires never use 0.7 of the wet grip: neither the
+    utilisation nor the rider's usual cornering reaches a caution's threshold. The filter reads the lower
+    friction within LATENCY_S of the drop, and that read drop below the margin's share of the grip ridden on
+    before is itself the caution, in its own words; before the read, safe."""
+    res = run_case(make_case("wet_corner", 5030), pipeline)
+    lat = res.summary()["latency"]
+    assert lat["load_at_reference"] >= LATENCY_LOAD
+    assert res.utilisation.max() < RiskConfig().margin
+    assert lat["caution_after_s"] is not None and lat["caution_after_s"] <= LATENCY_S
+    k = _first_lower_reading(res)
+    on = int(np.flatnonzero(res.run.level_code >= 1)[0])
+    assert on == k and res.run.t[k] >= res.reference_time()
+    a = res.run.assessments[on]
+    assert "the grip dropped" in a.reason and a.grip_drop_index >= 1.0 > a.risk_index / RiskConfig().caution_enter
+    assert a.grip_before == pytest.approx(0.9) and a.utilisation_usual / RiskConfig().margin < 1.0
 
 
 def test_wet_patch_on_a_straight_is_invisible_until_the_next_corner(pipeline):

@@ -26,6 +26,13 @@ Quantities (``g`` = 9.81 m/s^2, ``mu_hat`` and its 1-sigma from
   exceeds the margin the grip has dropped below the riding, which the
   warning says as soon as the estimate knows it (on a straight too), before
   the next curve is in the preview.
+* The grip the rider has been riding on: ``mu_before`` = the largest
+  ``mu_hat`` of the same ``style_window_s`` (the prior until a first reading),
+  and the drop index ``delta = m mu_before / mu_hat``. At ``delta >= 1`` a turn
+  that used the margin's share of the earlier grip now needs all of the grip
+  read: the rider's habits were formed on a road that is no longer there. This
+  warns of a read drop whatever the tires use at that moment (a wet patch read
+  under a gentle corner, where ``rho`` and ``pi`` stay below their thresholds).
 * Maximum safe lean ``phi_safe = atan(m mu_hat)`` and safe speed for the next
   curve ``v_safe = sqrt(m mu_hat g / kappa_max)`` (``kappa_max``: the largest
   ``|kappa|`` ahead), with the margin ``m`` = ``margin`` (0.7: a steady turn may
@@ -49,9 +56,11 @@ danger      ``rho >= 1.0`` (demand exceeds estimated     ``rho < 0.9``
             comfortable braking)
 caution     ``rho >= 0.7`` (the margin: 70 % of the       ``rho < 0.6``,
             estimated grip),
-            or ``pi >= 1`` (the rider's usual cornering    ``pi < 0.875`` and
-            needs more than ``m`` of the grip: slow       ``rho_low < 0.9``
-            down), or ``rho_low >= 1.0``
+            or ``pi >= 1`` (the rider's usual cornering    ``pi < 0.875``,
+            needs more than ``m`` of the grip: slow       ``delta < 0.875`` and
+            down), or ``delta >= 1`` (the grip read       ``rho_low < 0.9``
+            dropped below ``m`` of the grip of the
+            last ``style_window_s``), or ``rho_low >= 1.0``
             (grip not confirmed at 2 sigma)
 safe        otherwise
 ==========  ===========================================  ==========================
@@ -121,7 +130,7 @@ class RiskConfig:
     caution_enter, caution_exit, danger_enter, danger_exit : float
         Risk-index thresholds [-] (0.7, 0.6, 1.0, 0.9): caution at the margin's share of the grip.
     style_enter, style_exit : float
-        Thresholds of the riding-style index ``pi`` [-] (1.0, 0.875).
+        Thresholds of the riding-style index ``pi`` and of the grip-drop index ``delta`` [-] (1.0, 0.875).
     confirm_sigmas : float
         ``k`` of ``mu_low = mu_hat - k sigma`` (2). :class:`RiskMonitor` without a config takes 0 when its
         friction estimate reads a peak-scaling tire (``FrictionConfig.tire="peak"``, the default): such tires
@@ -136,7 +145,7 @@ class RiskConfig:
     comfort_decel : float
         Braking the rider can still do before a curve [m/s^2] (3.0, the urban scenario's).
     style_window_s : float
-        Window of the rider's usual cornering demand [s] (60).
+        Window of the rider's usual cornering demand and of the grip ridden before a drop [s] (60).
     preview_s, preview_min_m : float
         Path-ahead horizon: ``max(preview_min_m, v preview_s)`` [s, m] (6 s, 30 m).
     kappa_straight : float
@@ -252,6 +261,10 @@ class RiskAssessment:
         ``style_window_s``, in g [-].
     utilisation_usual : float
         ``usual_demand / mu_hat`` [-]: what the rider's style would use of the estimated grip.
+    grip_before : float
+        ``mu_before``: the largest ``mu_hat`` of the last ``style_window_s`` [-].
+    grip_drop_index : float
+        ``delta = margin mu_before / mu_hat`` [-] (>= 1: the grip read dropped below the margin's share of it).
     risk_index, risk_index_low : float
         ``rho`` with ``mu_hat`` and with ``mu_low`` [-].
     max_safe_lean : float
@@ -277,6 +290,8 @@ class RiskAssessment:
     utilisation_ahead: float
     usual_demand: float
     utilisation_usual: float
+    grip_before: float
+    grip_drop_index: float
     risk_index: float
     risk_index_low: float
     max_safe_lean: float
@@ -317,6 +332,31 @@ def safe_curve_speed(mu: float, kappa: float, margin: float = 1.0, g: float = G)
     return math.inf if k == 0 else math.sqrt(margin * mu * g / k)
 
 
+class WindowMax:
+    """The largest value pushed in the last ``window`` seconds (the last push included), in O(1) amortised per
+    push: a deque kept decreasing in value (each value leaves once, when a later one at least as large arrives
+    or when it is older than the window).
+
+    >>> w = WindowMax(1.0)
+    >>> [w.push(t, v) for t, v in [(0.0, 3.0), (0.5, 1.0), (1.2, 2.0), (1.6, 0.5)]]
+    [3.0, 3.0, 2.0, 2.0]
+    """
+
+    def __init__(self, window: float) -> None:
+        self.window = float(window)
+        self._q: deque[tuple[float, float]] = deque()
+
+    def push(self, t: float, v: float) -> float:
+        """Add ``v`` at time ``t`` (non-decreasing) and return the largest value of ``[t - window, t]``."""
+        q = self._q
+        while q and q[-1][1] <= v:
+            q.pop()
+        q.append((float(t), float(v)))
+        while q[0][0] < t - self.window:
+            q.popleft()
+        return q[0][1]
+
+
 class RiskMonitor:
     """Friction utilisation, safe lean and curve speed, and warning levels (module docstring).
 
@@ -347,7 +387,8 @@ class RiskMonitor:
         self._level = SAFE
         self._t_enter = -math.inf
         self._mu_hist: deque[tuple[float, float]] = deque()
-        self._demand: deque[tuple[float, float]] = deque()
+        self._demand = WindowMax(self.config.style_window_s)
+        self._grip = WindowMax(self.config.style_window_s)
         self._reason = ""
         self.last: RiskAssessment | None = None
 
@@ -407,12 +448,12 @@ class RiskMonitor:
         rho = max(u_now, u_ahead)
         rho_low = rho * mu / mu_low
         # the rider's style: the largest (0.3 s low-passed) lateral demand of the last style_window_s
-        self._demand.append((float(t), fr.excitation / G))
-        while self._demand and self._demand[0][0] < t - c.style_window_s:
-            self._demand.popleft()
-        usual = max(g_ for _, g_ in self._demand)
+        usual = self._demand.push(t, fr.excitation / G)
         u_style = usual / mu
         pace = u_style / c.margin
+        # the grip ridden on: the largest estimate of the same window, and how far the estimate fell below it
+        mu_before = self._grip.push(t, mu)
+        drop = c.margin * mu_before / mu
         v_safe = safe_curve_speed(mu, kmax, c.margin) if kmax > c.kappa_straight else math.inf
         lean = safe_lean_angle(mu, c.margin)
 
@@ -442,6 +483,9 @@ class RiskMonitor:
             target, reason = CAUTION, (f"caution: {grip} is low for your riding: you have been cornering at "
                                        f"{usual:.2f} g ({100 * u_style:.0f} % of it) in the last "
                                        f"{c.style_window_s:g} s; take the next curves slower: {advice}")
+        elif drop >= p_th:
+            target, reason = CAUTION, (f"caution: the grip dropped: {grip}, down from {mu_before:.2f} in the last "
+                                       f"{c.style_window_s:g} s; {what}; ride as on a low-grip road: {advice}")
         elif rho_low >= d_th:
             why = fr.status if not fr.informed else "the estimate is still uncertain"
             target, reason = CAUTION, (f"caution: grip not confirmed ({why}); {what}, "
@@ -458,7 +502,7 @@ class RiskMonitor:
             f = mu / mu_min
             lo_c = c.caution_exit if cur >= CAUTION else c.caution_enter
             held = (DANGER if rho * f >= d_th else
-                    CAUTION if (rho * f >= lo_c or pace * f >= p_th) else SAFE)
+                    CAUTION if (rho * f >= lo_c or pace * f >= p_th or drop * f >= p_th) else SAFE)
             if held > target:
                 target = min(held, cur)
                 if target == cur:  # the warning stays as it is, and so does its reason
@@ -477,7 +521,8 @@ class RiskMonitor:
             t=float(t), level=LEVELS[self._level], level_code=self._level, reason=self._reason, mu_hat=mu,
             mu_std=sd, mu_low=mu_low, friction_informed=fr.informed, friction_status=fr.status,
             excitation=fr.excitation, utilisation_front=float(u_axle[0]), utilisation_rear=float(u_axle[1]),
-            utilisation_ahead=u_ahead, usual_demand=usual, utilisation_usual=u_style, risk_index=rho, risk_index_low=rho_low, max_safe_lean=lean,
+            utilisation_ahead=u_ahead, usual_demand=usual, utilisation_usual=u_style,
+            grip_before=mu_before, grip_drop_index=drop, risk_index=rho, risk_index_low=rho_low, max_safe_lean=lean,
             safe_speed_next_curve=v_safe, next_curve_distance=math.nan if where is None else where[0],
             next_curve_kappa=math.nan if where is None else where[1],
         )
@@ -495,6 +540,7 @@ __all__ = [
     "RiskInputError",
     "RiskMonitor",
     "SAFE",
+    "WindowMax",
     "safe_curve_speed",
     "safe_lean_angle",
 ]
