@@ -222,7 +222,7 @@ def test_a_read_drop_of_the_grip_is_a_caution_whatever_the_tires_use():
         assert a.level == "safe" and a.grip_before == pytest.approx(0.9)
         b = mon.update(3.0, mu_new / 0.9 * C0, 0.02 * C0, vx=15.0, ay=0.1 * G, forces=(0.1 * fz[0], 0.1 * fz[1]))
         assert b.level == level and b.risk_index < cfg.caution_enter and b.utilisation_usual < cfg.margin
-        assert b.grip_drop_index == pytest.approx(cfg.margin * 0.9 / b.mu_hat)
+        assert b.grip_drop_index == pytest.approx(cfg.margin * 0.9 / (b.mu_hat + cfg.drop_sigmas * b.mu_std))
         assert ("the grip dropped" in b.reason and "down from 0.90" in b.reason) == (level == "caution")
     for k in range(1, round(cfg.style_window_s / 0.01) + 2):
         b = mon.update(3.0 + 0.01 * k, 0.45 / 0.9 * C0, 0.02 * C0, vx=15.0, ay=0.1 * G, forces=None)

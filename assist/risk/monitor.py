@@ -28,11 +28,17 @@ Quantities (``g`` = 9.81 m/s^2, ``mu_hat`` and its 1-sigma from
   the next curve is in the preview.
 * The grip the rider has been riding on: ``mu_before`` = the largest
   ``mu_hat`` of the same ``style_window_s`` (the prior until a first reading),
-  and the drop index ``delta = m mu_before / mu_hat``. At ``delta >= 1`` a turn
-  that used the margin's share of the earlier grip now needs all of the grip
-  read: the rider's habits were formed on a road that is no longer there. This
-  warns of a read drop whatever the tires use at that moment (a wet patch read
-  under a gentle corner, where ``rho`` and ``pi`` stay below their thresholds).
+  and the drop index ``delta = m mu_before / (mu_hat + k_d sigma)``. At
+  ``delta >= 1`` a turn that used the margin's share of the earlier grip now
+  needs all of the grip read: the rider's habits were formed on a road that is
+  no longer there. This warns of a read drop whatever the tires use at that
+  moment (a wet patch read under a gentle corner, where ``rho`` and ``pi`` stay
+  below their thresholds). The drop must be confirmed: ``k_d`` =
+  ``drop_sigmas`` (2) for a friction mapped from a stiffness estimate, which
+  moves with the estimate's noise sample by sample (on a dry ride it dips far
+  enough now and then); 0 for an estimator's own reading (``reading``), which
+  is itself a decision (the friction filter reads a lower friction only at
+  0.999 of its probability or 18.7 nats of evidence).
 * Maximum safe lean ``phi_safe = atan(m mu_hat)`` and safe speed for the next
   curve ``v_safe = sqrt(m mu_hat g / kappa_max)`` (``kappa_max``: the largest
   ``|kappa|`` ahead), with the margin ``m`` = ``margin`` (0.7: a steady turn may
@@ -131,6 +137,9 @@ class RiskConfig:
         Risk-index thresholds [-] (0.7, 0.6, 1.0, 0.9): caution at the margin's share of the grip.
     style_enter, style_exit : float
         Thresholds of the riding-style index ``pi`` and of the grip-drop index ``delta`` [-] (1.0, 0.875).
+    drop_sigmas : float
+        ``k_d`` of the grip-drop index for a friction mapped from a stiffness estimate (2; an estimator's own
+        reading is a decision already and takes 0).
     confirm_sigmas : float
         ``k`` of ``mu_low = mu_hat - k sigma`` (2). :class:`RiskMonitor` without a config takes 0 when its
         friction estimate reads a peak-scaling tire (``FrictionConfig.tire="peak"``, the default): such tires
@@ -159,6 +168,7 @@ class RiskConfig:
     style_enter: float = 1.0
     style_exit: float = 0.875
     confirm_sigmas: float = 2.0
+    drop_sigmas: float = 2.0
     mu_floor: float = 0.1
     min_dwell_s: float = 1.0
     margin: float = 0.7
@@ -173,7 +183,7 @@ class RiskConfig:
                      "mu_floor", "margin", "style_window_s",
                      "preview_s", "preview_min_m", "kappa_straight"):
             _pos(f"RiskConfig.{name}", getattr(self, name))
-        for name in ("confirm_sigmas", "min_dwell_s", "comfort_decel"):
+        for name in ("confirm_sigmas", "drop_sigmas", "min_dwell_s", "comfort_decel"):
             _pos(f"RiskConfig.{name}", getattr(self, name), allow_zero=True)
         if self.style_exit > self.style_enter:
             raise RiskInputError(f"RiskConfig needs style_exit <= style_enter, got {self.style_exit}, {self.style_enter}")
@@ -264,7 +274,8 @@ class RiskAssessment:
     grip_before : float
         ``mu_before``: the largest ``mu_hat`` of the last ``style_window_s`` [-].
     grip_drop_index : float
-        ``delta = margin mu_before / mu_hat`` [-] (>= 1: the grip read dropped below the margin's share of it).
+        ``delta = margin mu_before / (mu_hat + k_d mu_std)`` [-] (>= 1: the grip read dropped below the margin's
+        share of it; ``k_d``: :class:`RiskConfig`).
     risk_index, risk_index_low : float
         ``rho`` with ``mu_hat`` and with ``mu_low`` [-].
     max_safe_lean : float
@@ -453,7 +464,7 @@ class RiskMonitor:
         pace = u_style / c.margin
         # the grip ridden on: the largest estimate of the same window, and how far the estimate fell below it
         mu_before = self._grip.push(t, mu)
-        drop = c.margin * mu_before / mu
+        drop = c.margin * mu_before / (mu + (0.0 if reading is not None else c.drop_sigmas) * sd)
         v_safe = safe_curve_speed(mu, kmax, c.margin) if kmax > c.kappa_straight else math.inf
         lean = safe_lean_angle(mu, c.margin)
 
