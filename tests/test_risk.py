@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from assist.risk import (FrictionConfig, FrictionEstimate, PathAhead, RiskConfig, RiskMonitor, RiskPipeline,
                          RiskWarningWrapper, assess_log, safe_curve_speed, safe_lean_angle, stiffness_to_friction)
 from assist.risk.evaluation import saturation_events, true_utilisation
-from assist.risk.monitor import WindowMax
+from assist.risk.monitor import RiskInputError, WindowMax
 from assist.risk.friction_estimate import NOMINAL_STIFFNESS as C0
 from ptw_env.vehicle import REFERENCE_SCOOTER
 from assist.risk.offline import replay
@@ -238,6 +238,12 @@ def test_window_max_is_the_largest_value_of_its_window(steps, window):
         t += dt
         seen.append((t, v))
         assert w.push(t, v) == max(x for s_, x in seen if s_ >= t - window)
+
+
+@pytest.mark.parametrize("bad", [-1.0, math.nan, math.inf, "60", True])
+def test_window_max_refuses_a_window_that_is_not_a_duration(bad):
+    with pytest.raises(RiskInputError, match="WindowMax window"):
+        WindowMax(bad)
 
 
 def test_a_warning_held_down_one_level_says_why_in_its_own_words():

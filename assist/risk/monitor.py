@@ -354,7 +354,7 @@ class WindowMax:
     """
 
     def __init__(self, window: float) -> None:
-        self.window = float(window)
+        self.window = _pos("WindowMax window [s]", window, allow_zero=True)
         self._q: deque[tuple[float, float]] = deque()
 
     def push(self, t: float, v: float) -> float:
@@ -397,7 +397,7 @@ class RiskMonitor:
         self.friction.reset()
         self._level = SAFE
         self._t_enter = -math.inf
-        self._mu_hist: deque[tuple[float, float]] = deque()
+        self._mu_low = WindowMax(self.config.min_dwell_s)  # of -mu_hat
         self._demand = WindowMax(self.config.style_window_s)
         self._grip = WindowMax(self.config.style_window_s)
         self._reason = ""
@@ -505,11 +505,8 @@ class RiskMonitor:
             target, reason = SAFE, (f"safe: {what}; {grip} ({fr.status})")
         # a lower level also needs the grip to have stayed up: the indices with the lowest mu_hat of the
         # last min_dwell_s must allow it too (the estimate jitters while the tires near their limit)
-        self._mu_hist.append((float(t), mu))
-        while self._mu_hist and self._mu_hist[0][0] < t - c.min_dwell_s:
-            self._mu_hist.popleft()
+        mu_min = -self._mu_low.push(t, -mu)  # the lowest mu_hat of the last min_dwell_s
         if target < cur:
-            mu_min = min(m_ for _, m_ in self._mu_hist)
             f = mu / mu_min
             lo_c = c.caution_exit if cur >= CAUTION else c.caution_enter
             held = (DANGER if rho * f >= d_th else
